@@ -1,0 +1,61 @@
+# pfmembrane: `make` lists the targets.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+NP ?= 2
+export PETSC_DIR ?= /usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real
+export OMPI_ALLOW_RUN_AS_ROOT = 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM = 1
+export OMPI_MCA_rmaps_base_oversubscribe = 1
+export OMPI_MCA_btl_vader_single_copy_mechanism = none
+MPIEXEC ?= mpiexec
+DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
+       python3-matplotlib python3-venv python3-pip openmpi-bin
+
+.PHONY: help install run check test test-1 test-2 tables adapt bench clean
+
+help:
+	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
+	@echo "make run      the default scene (options/discocyte.opts) on $(NP) ranks"
+	@echo "make check    a 30 s smoke run on 2 ranks"
+	@echo "make test     the test suite: serial tests, then the MPI tests on 2 ranks"
+	@echo "make tables   the paper's uniform-grid tables (1, 2) under runs/tables/"
+	@echo "make bench    speed/accuracy benchmark under runs/bench/"
+
+$(PY):
+	@if ! /usr/bin/python3 -c 'import petsc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
+	  if command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(DEB); \
+	  elif command -v apt-get >/dev/null && command -v sudo >/dev/null; then \
+	    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(DEB); \
+	  else \
+	    echo "pfmembrane needs petsc4py, mpi4py, h5py, numpy, scipy, matplotlib."; \
+	    echo "Without apt: conda install -c conda-forge petsc4py mpi4py h5py scipy matplotlib,"; \
+	    echo "or: PETSC_CONFIGURE_OPTIONS='--with-cuda=0 --download-mumps ...' pip install --no-cache-dir petsc petsc4py"; \
+	    exit 1; \
+	  fi; \
+	fi
+	/usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q -e '.[test]'
+
+install: $(PY)
+
+run: install
+	$(MPIEXEC) -n $(NP) $(PY) -m pfmembrane -options_file options/discocyte.opts
+
+check: install
+	$(MPIEXEC) -n 2 $(PY) -m pfmembrane -options_file options/discocyte.opts \
+	  -pf_nodes 1500 -pf_eps 0.08 -pf_output runs/check.h5
+
+test: install
+	$(PY) -m pytest -q tests
+	$(MPIEXEC) -n 2 $(PY) -m pytest -q tests/parallel
+
+tables: install
+	$(PY) -m pfmembrane.tables --np $(NP) --out runs/tables
+
+bench: install
+	$(PY) -m pfmembrane.bench --out runs/bench
+
+clean:
+	rm -rf $(VENV) runs/check.h5

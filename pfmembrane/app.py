@@ -1,0 +1,120 @@
+"""The application: read options, build the grid, solve both stages, checkpoint."""
+import os
+import sys
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import checkpoint, nodes as nodesets, options
+from .assembly import Problem
+from .cvt import spacing_peaks
+from .discretization import Grid
+from .initial import spheroid_phi
+from .solver import Solver, SolveError
+
+# eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
+# distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
+# refused 1.18-1.25).
+RESOLUTION = 1.5
+
+
+def resolved_eps(grid):
+    """Smallest eps the grid resolves."""
+    return RESOLUTION * spacing_peaks(grid.h)
+
+
+def start_nodes(p, comm):
+    """Nodes and nodal phi (or None) from the restart checkpoint or a uniform grid."""
+    if p.restart:
+        ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
+        return ck.nodes, ck.phi
+    return nodesets.uniform(p.box, p.nodes), None
+
+
+def run(comm):
+    """Collective. Returns the process exit status."""
+    opts = PETSc.Options()
+    if opts.hasName('help'):
+        PETSc.Sys.Print(options.help_text())
+        return 0
+    p = options.read(opts)
+    t_start = time.perf_counter()
+    output = p.output or options.default_output(p)
+    size = comm.getSize()
+    PETSc.Sys.Print(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
+                    f"v={p.reduced_volume:g} box={p.box[0]:g}x{p.box[1]:g} gamma={p.gamma:g} "
+                    f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}")
+
+    stage = PETSc.Log.Stage('pfBasis')
+    stage.push()
+    t0 = time.perf_counter()
+    xy, phi0 = start_nodes(p, comm)
+    grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree)
+    stage.pop()
+    eps_min = resolved_eps(grid)
+    under = p.eps < eps_min
+    PETSc.Sys.Print(f"grid: {len(xy)} nodes ({grid.layout.nglobal} free), {grid.nquad} quadrature "
+                    f"points, eps_min {eps_min:.4g}, set-up {time.perf_counter() - t0:.2f} s")
+    if under and not p.force:
+        raise options.UsageError(
+            f"eps {p.eps:g} is below what this grid resolves (eps_min = {eps_min:.4g}); "
+            "use more nodes, an adapted grid, or -pf_force to run anyway")
+
+    problem = Problem(grid, p.eps, p.k, p.c0, (p.area, p.volume, 0.0), p.zc)
+    x = problem.create_vec()
+    lay = grid.layout
+    own = lay.order[lay.start:lay.start + lay.nowned]
+    if phi0 is None:
+        a, c = options.check_fits(p)
+        x.setArray(spheroid_phi(xy[own], a, c, p.zc, p.eps))
+    else:
+        x.setArray(phi0[own])
+
+    solver = Solver(problem, p)
+    converged, message = True, None
+    try:
+        for name, fn in (('pfStage1', solver.stage1), ('pfStage2', solver.stage2)):
+            stage = PETSc.Log.Stage(name)
+            stage.push()
+            try:
+                vals, res = fn(x)
+            finally:
+                stage.pop()
+            s = solver.stats[name[2:].lower()]
+            PETSc.Sys.Print(
+                f"{name[2:].lower()}: {s.get('outer', s.get('iterations'))} its"
+                f"{' (' + str(s['inner']) + ' inner)' if 'inner' in s else ''}, E {s['energy']:.8f}, "
+                f"constraint residual {s['residual']:.2e}, max|phi| {solver.max_phi(x):.4f}, "
+                f"{s['time']:.2f} s")
+    except SolveError as e:
+        converged, message = False, str(e)
+        vals, res = problem.gradients(x, solver.gE, solver.gA), None
+
+    stage = PETSc.Log.Stage('pfCheckpoint')
+    stage.push()
+    values = lay.gather(x)
+    wall = time.perf_counter() - t_start
+    phi_nodes = None
+    if comm.getRank() == 0:
+        phi_nodes = np.full(len(xy), -1.0)
+        phi_nodes[lay.order] = values
+    attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=p.eps,
+                 k=p.k, c0=p.c0, gamma=p.gamma, nu_area=solver.nu[0], nu_volume=solver.nu[1],
+                 nu_moment=solver.nu[2], converged=int(converged), wall_time=wall,
+                 n_procs=size, cutoff=p.cutoff, quad_degree=p.quad_degree,
+                 radius=p.radius, reduced_volume=p.reduced_volume, branch=p.branch,
+                 under_resolved=int(under), eps_min=eps_min)
+    if comm.getRank() == 0:
+        os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
+    attrs["box"] = np.asarray(p.box)
+    checkpoint.write(output, xy, phi_nodes, attrs, comm=comm.tompi4py())
+    stage.pop()
+    PETSc.Sys.Print(
+        f"result: E {vals[0]:.8f} nu_A {solver.nu[0]:.6g} nu_V {solver.nu[1]:.6g} "
+        f"max|phi| {solver.max_phi(x):.4f} converged {int(converged)}"
+        f"{' UNDER-RESOLVED' if under else ''} wall {wall:.2f} s -> {output}")
+    if not converged:
+        sys.stderr.write(f"pfmembrane: {message} (checkpoint {output} marked converged = 0)\n")
+        return 1
+    return 0

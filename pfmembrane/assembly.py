@@ -1,0 +1,159 @@
+"""PETSc layer: functionals of a distributed nodal Vec, gradients into Vecs,
+Hessians into the bordered AIJ matrix [[H, -C^T], [-C, D]].
+
+The only module that moves data between ranks during a solve: ghost values
+arrive by forward scatters, gradient contributions leave by reverse
+scatter-adds, Hessian rows owned elsewhere travel through MatSetValues' stash.
+"""
+import numpy as np
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+from .functionals import Functionals
+
+NCON = 3  # area, volume, moment
+
+
+class Problem:
+    """Energy and constraints of one scene on one grid, on distributed Vecs.
+
+    Collective. `targets` = (A0, V0, M0). The unknowns are the free nodal
+    values (Dirichlet nodes are eliminated), in the layout's global numbering.
+    """
+
+    def __init__(self, grid, eps, k, c0, targets, zc):
+        self.grid, self.layout = grid, grid.layout
+        self.comm = grid.comm
+        self.mpi = self.comm.tompi4py()
+        self.eps = eps
+        self.forms = Functionals(grid.ops, eps, k, c0, zc)
+        self.targets = np.asarray(targets, dtype=float)
+        self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
+        self._ghosted = self.layout.create_ghosted()
+        self.grad_V = self._to_global(self.forms.grad_V)
+        self.grad_M = self._to_global(self.forms.grad_M)
+        self._K = None
+        self.log = {name: PETSc.Log.Event('pf' + name) for name in
+                    ('Functional', 'Gradient', 'Hessian', 'MatAssembly')}
+
+    # -- vectors ---------------------------------------------------------------
+    def create_vec(self):
+        return self.layout.create_vec()
+
+    def local(self, x):
+        """Owned + ghost values of the global Vec x (a fresh array)."""
+        g = self._ghosted
+        x.copy(g)
+        g.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with g.localForm() as loc:
+            return loc.getArray(readonly=True).copy()
+
+    def _to_global(self, local_values, out=None):
+        """Sum rank-local nodal contributions (ghosts included) into a global Vec."""
+        g = self._ghosted
+        with g.localForm() as loc:
+            loc.setArray(local_values)
+        g.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = out if out is not None else self.create_vec()
+        out.setArray(g.getArray(readonly=True))
+        return out
+
+    def _sum(self, local):
+        return self.mpi.allreduce(local)
+
+    # -- functionals -----------------------------------------------------------
+    def values(self, x):
+        """Global (E, A, V, M) at x."""
+        with self.log['Functional']:
+            v = self._sum(self.forms.values(self.local(x)))
+        v[2] += 0.5 * self.volume_box
+        return v
+
+    def gradients(self, x, gE, gA):
+        """Global (E, A, V, M) at x; fills gE and gA. grad V, grad M are constant."""
+        with self.log['Gradient']:
+            vals, lE, lA = self.forms.gradients(self.local(x))
+            self._to_global(lE, gE)
+            self._to_global(lA, gA)
+            v = self._sum(vals)
+        v[2] += 0.5 * self.volume_box
+        return v
+
+    # -- bordered matrix -------------------------------------------------------
+    def bordered_matrix(self):
+        """The AIJ matrix [[H, -C^T], [-C, D]] with exact preallocation (built once).
+
+        Collective. The last rank owns the NCON multiplier rows.
+        """
+        if self._K is None:
+            self._K = self._create_bordered()
+        return self._K
+
+    def _create_bordered(self):
+        lay, mpi = self.layout, self.mpi
+        size, rank = mpi.Get_size(), mpi.Get_rank()
+        n, last = lay.nglobal, rank == size - 1
+        P = self.grid.hessian_pattern().tocoo()
+        rows, cols = lay.local_numbers[P.row], lay.local_numbers[P.col]
+        starts = np.array(mpi.allgather(lay.start) + [n])
+        dest = np.searchsorted(starts, rows, side='right') - 1
+        # Rows touched here but owned elsewhere: send their pattern to the owner.
+        order = np.argsort(dest, kind='stable')
+        keys = (rows * (n + NCON) + cols)[order]
+        counts = np.bincount(dest, minlength=size)
+        recv_counts = np.array(mpi.alltoall(counts.tolist()))
+        recv = np.empty(recv_counts.sum(), dtype=np.int64)
+        mpi.Alltoallv([keys.astype(np.int64), counts], [recv, recv_counts])
+        keys = np.unique(recv)
+        r, c = keys // (n + NCON) - lay.start, keys % (n + NCON)
+        nrows = lay.nowned + (NCON if last else 0)
+        border = np.arange(n, n + NCON)
+        counts_r = np.bincount(r, minlength=lay.nowned)
+        # Each owned row: its (sorted) Hessian columns, then the NCON border columns.
+        indptr = np.concatenate([[0], np.cumsum(counts_r + NCON)])
+        indices = np.empty(indptr[-1], dtype=np.int64)
+        indices[np.arange(len(c)) + NCON * r] = c
+        for j in range(NCON):
+            indices[indptr[1:] - NCON + j] = n + j
+        if last:  # dense multiplier rows: every unknown and the diagonal block
+            dense = np.arange(n + NCON)
+            indptr = np.concatenate([indptr, indptr[-1] + (n + NCON) * np.arange(1, NCON + 1)])
+            indices = np.concatenate([indices] + [dense] * NCON)
+        K = PETSc.Mat().create(comm=self.comm)
+        K.setSizes(((nrows, n + NCON), (nrows, n + NCON)))
+        K.setType(PETSc.Mat.Type.AIJ)
+        K.setPreallocationCSR((indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType)))
+        K.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        lg = np.concatenate([lay.local_numbers, border]).astype(PETSc.IntType)
+        K.setLGMap(PETSc.LGMap().create(lg, comm=self.comm))
+        return K
+
+    def assemble_bordered(self, x, sigma, C, diag, shift=0.0):
+        """K = [[Hess E - sigma Hess A + shift I, -C^T], [-C, diag I]] at x.
+
+        Collective. C is the list of NCON constraint-gradient Vecs.
+        """
+        K = self.bordered_matrix()
+        lay = self.layout
+        with self.log['Hessian']:
+            H = self.forms.hessian(self.local(x), sigma)
+            if shift:
+                H = H + sp.diags(np.where(np.arange(lay.nlocal) < lay.nowned, shift, 0.0))
+        with self.log['MatAssembly']:
+            K.zeroEntries()
+            K.setValuesLocalCSR(H.indptr.astype(PETSc.IntType), H.indices.astype(PETSc.IntType),
+                                H.data, addv=PETSc.InsertMode.ADD)
+            Cown = -np.column_stack([c.getArray(readonly=True) for c in C])
+            m, nl = lay.nowned, lay.nlocal
+            K.setValuesLocalCSR(np.arange(0, NCON * m + 1, NCON, dtype=PETSc.IntType),
+                                np.tile(np.arange(nl, nl + NCON), m).astype(PETSc.IntType),
+                                Cown.ravel(), addv=PETSc.InsertMode.ADD)
+            own = np.arange(m, dtype=PETSc.IntType)
+            for j in range(NCON):
+                K.setValuesLocal([nl + j], own, Cown[:, j], addv=PETSc.InsertMode.ADD)
+            if self.comm.getRank() == self.comm.getSize() - 1:
+                for j in range(NCON):
+                    K.setValuesLocal(nl + j, nl + j, diag, addv=PETSc.InsertMode.ADD)
+            K.assemble()
+        return K

@@ -1,0 +1,83 @@
+"""One grid: nodes, max-ent basis at this rank's quadrature points, operators.
+
+Everything here is built once per node set and reused by every functional,
+every iteration and every eps on that grid.
+"""
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import maxent, nodes as nodesets, quadrature
+from .cvt import nodal_spacing
+from .partition import Layout
+
+
+class Operators(NamedTuple):
+    """Rank-local maps from local nodal values to fields at local quadrature points.
+
+    u = B0 @ phi + b0 (value), ur, uz (gradient), lap (axisymmetric Laplacian
+    u_rr + u_r / r + u_zz); the offsets b* carry the Dirichlet nodes at -1.
+    """
+    B0: sp.csr_matrix
+    Br: sp.csr_matrix
+    Bz: sp.csr_matrix
+    BL: sp.csr_matrix
+    b0: np.ndarray
+    br: np.ndarray
+    bz: np.ndarray
+    bL: np.ndarray
+    w: np.ndarray
+    r: np.ndarray
+    z: np.ndarray
+
+
+class Grid:
+    """A node set with its max-ent basis, partition and local operators.
+
+    Collective. Parameters are plain values: `box` = (Rb, Zb), `gamma` the
+    locality, `cutoff` the support cut-off exp(-beta_a d^2) >= cutoff, `degree`
+    the Gauss rule on the Delaunay triangles.
+    """
+
+    def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4):
+        self.comm, self.nodes, self.box = comm, nodes, tuple(box)
+        self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
+        self.h = nodal_spacing(nodes)
+        self.beta = gamma / self.h ** 2
+        self.dirichlet = nodesets.dirichlet_mask(nodes, box)
+        self.triangles = quadrature.triangulate(nodes)
+        self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)
+        points, weights = quadrature.rule(nodes, self.layout.my_triangles, degree)
+        self.nquad = comm.tompi4py().allreduce(len(points))
+        self.ops = self._operators(points, weights)
+
+    def _operators(self, points, weights):
+        radius = maxent.support_radius(self.beta, self.cutoff)
+        aug, beta_aug, owner = nodesets.with_axis_mirrors(self.nodes, self.beta, radius)
+        basis = maxent.local_maxent(points, aug, beta_aug, self.cutoff, derivatives=2)
+        rows = np.repeat(np.arange(len(points)), np.diff(basis.indptr))
+        node = owner[basis.indices]
+        r = points[:, 0]
+        columns = {'B0': basis.p, 'Br': basis.dp[:, 0], 'Bz': basis.dp[:, 1],
+                   'BL': basis.ddp[:, 0] + basis.dp[:, 0] / r[rows] + basis.ddp[:, 2]}
+        fixed = self.dirichlet[node]
+        layout = self.layout
+        layout.set_ghosts(layout.number[node[~fixed]])
+        col = layout.local_index(layout.number[node[~fixed]])
+        shape = (len(points), layout.nlocal)
+        ops = {}
+        for name, val in columns.items():
+            ops[name] = sp.csr_matrix((val[~fixed], (rows[~fixed], col)), shape=shape)
+            # Dirichlet nodes hold phi = -1: their contribution is a constant.
+            ops['b' + name[1:]] = -np.bincount(rows[fixed], weights=val[fixed],
+                                               minlength=len(points))
+        return Operators(w=weights, r=r, z=points[:, 1], **ops)
+
+    def hessian_pattern(self):
+        """Local (nlocal x nlocal) sparsity of B^T diag(c) B, free of cancellation."""
+        S = abs(self.ops.B0) + abs(self.ops.Br) + abs(self.ops.Bz) + abs(self.ops.BL)
+        S.data[:] = 1.0
+        P = (S.T @ S).tocsr()
+        P.sort_indices()
+        return P

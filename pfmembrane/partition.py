@@ -1,0 +1,118 @@
+"""Ownership of the free nodes among the ranks, carried by a PETSc DMShell.
+
+Every rank holds the node coordinates (per-node data is small). Each rank owns
+a contiguous block of the free unknowns, renumbered after a graph partition of
+the Delaunay adjacency, owns the background triangles nearest to its nodes, and
+sees as ghosts the off-rank free nodes its quadrature points touch.
+"""
+import numpy as np
+from petsc4py import PETSc
+from scipy.spatial import cKDTree
+
+
+def _graph(n, triangles):
+    """Symmetric adjacency (CSR) of the triangles' edges, without the diagonal."""
+    i = triangles[:, [0, 1, 2, 1, 2, 0]].ravel()
+    j = triangles[:, [1, 2, 0, 0, 1, 2]].ravel()
+    key = np.unique(i * n + j)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(key // n, minlength=n))])
+    return indptr, key % n
+
+
+def partition_free_nodes(comm, free, triangles):
+    """Rank owning each free node (in node order).
+
+    Collective. MatPartitioning (-pf_mat_partitioning_type, default ptscotch)
+    cuts the Delaunay graph of the free nodes so that ghost layers stay thin.
+    """
+    size, rank = comm.getSize(), comm.getRank()
+    nfree = int(free.sum())
+    if size == 1:
+        return np.zeros(nfree, dtype=np.int64)
+    index = np.full(len(free), -1, dtype=np.int64)
+    index[free] = np.arange(nfree)
+    indptr, cols = _graph(nfree, index[triangles[free[triangles].all(axis=1)]])
+    lo, hi = nfree * rank // size, nfree * (rank + 1) // size
+    adj = PETSc.Mat().createAIJ(
+        size=((hi - lo, nfree), (hi - lo, nfree)), comm=comm,
+        csr=((indptr[lo:hi + 1] - indptr[lo]).astype(PETSc.IntType),
+             cols[indptr[lo]:indptr[hi]].astype(PETSc.IntType),
+             np.ones(indptr[hi] - indptr[lo])))
+    part = PETSc.MatPartitioning().create(comm)
+    part.setAdjacency(adj)
+    part.setType('ptscotch')
+    part.setOptionsPrefix('pf_')
+    part.setFromOptions()
+    new_is = PETSc.IS()
+    part.apply(new_is)
+    new_rank = new_is.getIndices().astype(np.int64)
+    new_is.destroy()
+    part.destroy()
+    adj.destroy()
+    return np.concatenate(comm.tompi4py().allgather(new_rank))
+
+
+class Layout:
+    """Global numbering of the free unknowns, their ghosts and PETSc vectors.
+
+    Collective. `order[g]` is the node of global unknown g and `number[a]` the
+    unknown of node a (-1 on Dirichlet nodes). Local arrays hold the owned
+    unknowns first, then the ghosts in increasing global number.
+    """
+
+    def __init__(self, comm, nodes, free, triangles):
+        self.comm = comm
+        rank = comm.getRank()
+        owner = partition_free_nodes(comm, free, triangles)
+        free_nodes = np.flatnonzero(free)
+        self.order = free_nodes[np.argsort(owner, kind='stable')]
+        self.number = np.full(len(free), -1, dtype=np.int64)
+        self.number[self.order] = np.arange(len(self.order))
+        counts = np.bincount(owner, minlength=comm.getSize())
+        self.start, self.nowned = int(counts[:rank].sum()), int(counts[rank])
+        self.nglobal = len(self.order)
+        node_rank = np.full(len(free), -1)
+        node_rank[free_nodes] = owner
+        # A triangle goes to the owner of the free node nearest its centroid.
+        centroid = nodes[triangles].mean(axis=1)
+        nearest = cKDTree(nodes[free_nodes]).query(centroid)[1]
+        self.my_triangles = triangles[node_rank[free_nodes[nearest]] == rank]
+        self.dm = PETSc.DMShell().create(comm)
+        self.dm.setGlobalVector(self.create_vec())
+
+    def set_ghosts(self, touched):
+        """Make the off-rank unknowns among `touched` (global numbers) ghosts."""
+        g = np.unique(touched)
+        self.ghosts = g[(g < self.start) | (g >= self.start + self.nowned)]
+        self.local_numbers = np.concatenate(
+            [np.arange(self.start, self.start + self.nowned), self.ghosts])
+        self.nlocal = len(self.local_numbers)
+        self.lgmap = PETSc.LGMap().create(self.local_numbers.astype(PETSc.IntType),
+                                          comm=self.comm)
+
+    def local_index(self, g):
+        """Local index (owned, then ghosts) of global unknowns `g`."""
+        owned = (g >= self.start) & (g < self.start + self.nowned)
+        return np.where(owned, g - self.start,
+                        self.nowned + np.searchsorted(self.ghosts, g))
+
+    def create_vec(self):
+        """A distributed vector over the free unknowns."""
+        return PETSc.Vec().createMPI((self.nowned, self.nglobal), comm=self.comm)
+
+    def create_ghosted(self):
+        """A distributed vector with this rank's ghost entries appended locally."""
+        return PETSc.Vec().createGhost(self.ghosts.astype(PETSc.IntType),
+                                       size=(self.nowned, self.nglobal), comm=self.comm)
+
+    def gather(self, vec):
+        """The whole vector (indexed by global number) on rank 0, None elsewhere.
+
+        Collective.
+        """
+        scatter, full = PETSc.Scatter.toZero(vec)
+        scatter.scatter(vec, full, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        out = full.getArray().copy() if self.comm.getRank() == 0 else None
+        scatter.destroy()
+        full.destroy()
+        return out

@@ -1,0 +1,249 @@
+"""Stage 1: augmented Lagrangian; stage 2: Newton on the bordered (Phi, nu) system.
+
+Convention (paper and MODEL.md): L = E - nu . (c - c0), c = (A, V, M);
+the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
+tension, nu_V the pressure difference.
+"""
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from .assembly import NCON
+
+
+class SolveError(Exception):
+    """A stage that did not converge; carries the reason and a remedy."""
+
+
+def _set_default(prefix, name, value):
+    opts = PETSc.Options()
+    if not opts.hasName(prefix + name):
+        opts.setValue(prefix + name, value)
+
+
+class Solver:
+    """Drives both stages on one Problem. Collective.
+
+    `x` is the distributed Vec of free nodal values, updated in place.
+    """
+
+    def __init__(self, problem, params, print_fn=PETSc.Sys.Print):
+        self.P, self.p = problem, params
+        self.print = print_fn
+        self.gE, self.gA = problem.create_vec(), problem.create_vec()
+        self.C = [self.gA, problem.grad_V, problem.grad_M]
+        self.scale = np.array([params.area, params.volume, params.volume * params.radius])
+        self.nu = np.zeros(NCON)
+        self.mpi = problem.mpi
+        self.stats = {}
+
+    # -- helpers ---------------------------------------------------------------
+    def evaluate(self, x):
+        """Values (E, A, V, M), constraint residual c - c0; fills gE, gA."""
+        vals = self.P.gradients(x, self.gE, self.gA)
+        return vals, vals[1:] - self.P.targets
+
+    def combine(self, out, lam):
+        """out = gE - sum lam_i C_i (the gradient of a Lagrangian)."""
+        self.gE.copy(out)
+        for li, ci in zip(lam, self.C):
+            out.axpy(-li, ci)
+        return out
+
+    def least_squares_multipliers(self):
+        """nu minimizing |grad E - C^T nu|: keeps the initial guess on its branch."""
+        G = np.array([[a.dot(b) for b in self.C] for a in self.C])
+        rhs = np.array([c.dot(self.gE) for c in self.C])
+        return np.linalg.solve(G, rhs)
+
+    def max_phi(self, x):
+        return max(x.norm(PETSc.NormType.NORM_INFINITY), 1.0)
+
+    def row(self, stage, it, vals, res, gnorm):
+        if self.p.monitor:
+            rel = np.abs(res) / self.scale
+            self.print(f"  {stage} {it:3d} E {vals[0]:.10f} |g| {gnorm:.3e} "
+                       f"rA {rel[0]:.2e} rV {rel[1]:.2e} rM {rel[2]:.2e} "
+                       f"nuA {self.nu[0]:.5g} nuV {self.nu[1]:.5g}")
+
+    # -- stage 1 ---------------------------------------------------------------
+    def stage1(self, x):
+        """Augmented Lagrangian to the coarse tolerance -pf_stage1_rtol."""
+        from .options import stage1_penalty
+        t0 = time.perf_counter()
+        mu = stage1_penalty(self.p)
+        vals, res = self.evaluate(x)
+        self.nu = self.least_squares_multipliers()
+        inner = self._newton if self.p.stage1 == 'newton' else self._tao
+        iters = 0
+        gtol = None
+        for outer in range(1, self.p.stage1_max_it + 1):
+            iters += inner(x, mu, gtol)
+            vals, res = self.evaluate(x)
+            rel = np.abs(res) / self.scale
+            self.nu = self.nu - res / mu
+            g = self.combine(x.duplicate(), self.nu).norm()
+            gtol = 0.1 * g if gtol is None else min(gtol, 0.1 * g)
+            self.row('AL', outer, vals, res, g)
+            if rel.max() < self.p.stage1_rtol:
+                break
+        else:
+            raise SolveError(f"stage 1 did not reach constraint residual {self.p.stage1_rtol:g} "
+                             f"in {self.p.stage1_max_it} outer iterations (last {rel.max():.2e}); "
+                             "try a stronger penalty (-pf_mu smaller) or a finer grid")
+        self.stats['stage1'] = dict(outer=outer, inner=iters, time=time.perf_counter() - t0,
+                                    energy=vals[0], residual=rel.max())
+        return vals, res
+
+    def _augmented(self, vals, res, mu):
+        return vals[0] - np.dot(self.nu, res) + np.dot(res, res) / (2 * mu)
+
+    def _newton(self, x, mu, gtol, max_it=50):
+        """Newton with line search on L_A; the step solves the bordered system
+        [[H, -C^T], [-C, -mu I]] whose inertia has exactly NCON negative
+        eigenvalues iff Hess L_A = H + C^T C / mu is positive definite."""
+        P = self.P
+        ksp = self._ksp('stage1_', cholesky=True)
+        K = P.bordered_matrix()
+        rhs, sol = K.createVecs()
+        g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
+        shift, nl = 0.0, P.layout.nowned
+        for it in range(max_it):
+            vals, res = self.evaluate(x)
+            lam = self.nu - res / mu
+            self.combine(g, lam)
+            gnorm = g.norm()
+            self.row('newton', it, vals, res, gnorm)
+            if gtol is not None and gnorm <= gtol:
+                return it
+            La = self._augmented(vals, res, mu)
+            while True:
+                P.assemble_bordered(x, lam[0], self.C, -mu, shift)
+                ksp.setOperators(K)
+                rhs.zeroEntries()
+                rhs.getArray()[:nl] = -g.getArray(readonly=True)
+                ksp.solve(rhs, sol)
+                nneg = self._negative_pivots(ksp)
+                d.setArray(sol.getArray(readonly=True)[:nl])
+                slope = g.dot(d)
+                if (nneg is None or nneg == NCON) and slope < 0:
+                    shift = shift / 4 if shift > 1e-8 else 0.0
+                    break
+                shift = max(4 * shift, 1e-4)
+            t = 1.0
+            while True:
+                x.copy(xt)
+                xt.axpy(t, d)
+                v2 = P.values(xt)
+                r2 = v2[1:] - P.targets
+                if self._augmented(v2, r2, mu) <= La + 1e-4 * t * slope or t < 1e-8:
+                    break
+                t *= 0.5
+            xt.copy(x)
+            if gtol is None and it >= 2:
+                return it + 1
+        return max_it
+
+    def _negative_pivots(self, ksp):
+        try:
+            return ksp.getPC().getFactorMatrix().getInertia()[0]
+        except PETSc.Error:
+            return None
+
+    def _tao(self, x, mu, gtol):
+        """One inner minimization of L_A with a TAO gradient-based solver."""
+        P = self.P
+        tao = getattr(self, '_tao_obj', None)
+        if tao is None:
+            tao = self._tao_obj = PETSc.TAO().create(P.comm)
+            tao.setOptionsPrefix('stage1_')
+            tao.setType(PETSc.TAO.Type.BQNLS)
+            tao.setMaximumIterations(500)
+            tao.setFromOptions()
+        g = x.duplicate()
+
+        def objgrad(tao, xx, G):
+            vals, res = self.evaluate(xx)
+            self.combine(G, self.nu - res / mu)
+            return self._augmented(vals, res, mu)
+
+        tao.setObjectiveGradient(objgrad, g)
+        tao.setTolerances(gatol=gtol if gtol is not None else 1e-2, grtol=0.0, gttol=0.0)
+        tao.solve(x)
+        return tao.getIterationNumber()
+
+    # -- stage 2 ---------------------------------------------------------------
+    def stage2(self, x):
+        """Newton (SNES) on (Phi, nu): residual [grad E - C^T nu; -(c - c0)]."""
+        t0 = time.perf_counter()
+        P = self.P
+        K = P.bordered_matrix()
+        X, F = K.createVecs()
+        nl = P.layout.nowned
+        last = P.comm.getRank() == P.comm.getSize() - 1
+        X.getArray()[:nl] = x.getArray(readonly=True)
+        if last:
+            X.getArray()[nl:] = self.nu
+        g, xx = x.duplicate(), x.duplicate()
+
+        def unpack(XX):
+            xx.setArray(XX.getArray(readonly=True)[:nl])
+            nu = XX.getArray(readonly=True)[nl:] if last else None
+            return np.asarray(self.mpi.bcast(None if nu is None else nu.copy(),
+                                             root=P.comm.getSize() - 1))
+
+        def residual(snes, XX, FF):
+            nu = unpack(XX)
+            vals, res = self.evaluate(xx)
+            self.combine(g, nu)
+            FF.getArray()[:nl] = g.getArray(readonly=True)
+            if last:
+                FF.getArray()[nl:] = -res
+
+        def jacobian(snes, XX, J, Pm):
+            nu = unpack(XX)
+            self.evaluate(xx)
+            P.assemble_bordered(xx, nu[0], self.C, 0.0)
+
+        snes = PETSc.SNES().create(P.comm)
+        snes.setOptionsPrefix('stage2_')
+        snes.setFunction(residual, F)
+        snes.setJacobian(jacobian, K, K)
+        snes.setTolerances(rtol=self.p.stage2_rtol, atol=1e-12, max_it=20)
+        self._configure_direct(snes.getKSP(), 'stage2_', cholesky=False)
+        snes.setFromOptions()
+        snes.solve(None, X)
+        reason = snes.getConvergedReason()
+        self.nu = unpack(X)
+        x.setArray(xx.getArray(readonly=True))
+        vals, res = self.evaluate(x)
+        rel = np.abs(res) / self.scale
+        self.stats['stage2'] = dict(iterations=snes.getIterationNumber(), reason=reason,
+                                    time=time.perf_counter() - t0, energy=vals[0],
+                                    residual=rel.max())
+        snes.destroy()
+        if reason <= 0:
+            raise SolveError(f"stage 2 Newton did not converge (SNES reason {reason}); "
+                             "try a tighter stage 1 (-pf_stage1_rtol) or a finer grid")
+        return vals, res
+
+    # -- linear solvers --------------------------------------------------------
+    def _configure_direct(self, ksp, prefix, cholesky):
+        """Defaults: a MUMPS factorization with AMD-type ordering; options override."""
+        ksp.setOptionsPrefix(prefix)
+        ksp.setType(PETSc.KSP.Type.PREONLY)
+        pc = ksp.getPC()
+        pc.setType(PETSc.PC.Type.CHOLESKY if cholesky else PETSc.PC.Type.LU)
+        pc.setFactorSolverType('mumps')
+        _set_default(prefix, 'mat_mumps_icntl_7', '6')
+        _set_default(prefix, 'mat_mumps_icntl_13', '1')  # inertia in parallel
+        _set_default(prefix, 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
+
+    def _ksp(self, prefix, cholesky):
+        ksp = getattr(self, '_stage1_ksp', None)
+        if ksp is None:
+            ksp = self._stage1_ksp = PETSc.KSP().create(self.P.comm)
+            self._configure_direct(ksp, prefix, cholesky)
+            ksp.setFromOptions()
+        return ksp

@@ -1,0 +1,63 @@
+"""Node sets, quadrature exactness, the initial spheroids."""
+import numpy as np
+import pytest
+
+from pfmembrane import nodes, quadrature
+from pfmembrane.initial import spheroid_area, spheroid_axes
+
+BOX = (1.5, 2.0)
+
+
+@pytest.mark.parametrize("n, hbar", [(6124, 0.024), (12271, 0.017), (24597, 0.012)])
+def test_uniform_grids_match_the_paper(n, hbar):
+    x = nodes.uniform(BOX, n)
+    assert abs(len(x) - n) < 0.01 * n
+    labels = nodes.edge_labels(x, BOX)
+    for edge in (nodes.AXIS, nodes.OUTER, nodes.BOTTOM, nodes.TOP):
+        assert (labels & edge).sum() > 10
+    tri = quadrature.triangulate(x)
+    e = np.unique(np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), 1), axis=0)
+    d = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+    assert abs(d.mean() - hbar) < 0.05 * hbar          # Table 1's mean spacing
+    assert np.array_equal(x, nodes.uniform(BOX, n))   # deterministic
+
+
+@pytest.mark.parametrize("degree", quadrature.DEGREES)
+def test_quadrature_exact_on_polynomials(degree):
+    x = nodes.uniform(BOX, 800)
+    pts, w = quadrature.rule(x, quadrature.triangulate(x), degree, axisymmetric=False)
+    r, z = pts.T
+    for i in range(degree + 1):
+        for j in range(degree + 1 - i):
+            exact = BOX[0] ** (i + 1) / (i + 1) * BOX[1] ** (j + 1) / (j + 1)
+            assert abs(np.dot(w, r ** i * z ** j) - exact) < 1e-12 * max(1.0, exact)
+    if degree < 5:  # the next degree is not integrated exactly: the test can fail
+        i = degree + 1
+        assert abs(np.dot(w, r ** i) - BOX[0] ** (i + 1) / (i + 1) * BOX[1]) > 1e-12
+
+
+def test_box_volume():
+    x = nodes.uniform(BOX, 2000)
+    _, w = quadrature.rule(x, quadrature.triangulate(x), 4)
+    assert abs(w.sum() - np.pi * BOX[0] ** 2 * BOX[1]) < 1e-12 * w.sum()
+
+
+def test_axis_mirrors_are_reflections():
+    x = nodes.uniform(BOX, 500)
+    beta = np.full(len(x), 3.0)
+    aug, baug, owner = nodes.with_axis_mirrors(x, beta, 0.2)
+    extra = aug[len(x):]
+    assert np.all(extra[:, 0] < 0) and np.allclose(np.abs(extra), x[owner[len(x):]])
+    assert not np.any(x[owner[len(x):], 0] == 0.0)  # axis nodes are their own mirrors
+
+
+def test_spheroids_have_the_scene_area_and_volume():
+    R = 0.4
+    A, V = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
+    for branch, (a_ref, c_ref) in {'oblate': (0.4987, 0.2059), 'prolate': (0.2637, 0.7362)}.items():
+        a, c = spheroid_axes(A, V, branch)
+        assert abs(a - a_ref) < 1e-4 and abs(c - c_ref) < 1e-4
+        assert abs(spheroid_area(a, c) / A - 1) < 1e-10
+        assert abs(4 / 3 * np.pi * a * a * c / V - 1) < 1e-10
+    with pytest.raises(ValueError):
+        spheroid_axes(A, 1.1 * 4 / 3 * np.pi * R ** 3, 'oblate')
