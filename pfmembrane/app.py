@@ -1,5 +1,6 @@
 """The application: read options, build the grid, solve both stages, checkpoint."""
 import os
+import resource
 import sys
 import time
 
@@ -8,7 +9,7 @@ from petsc4py import PETSc
 
 from . import checkpoint, nodes as nodesets, options
 from .assembly import Problem
-from .cvt import spacing_peaks
+from .nodes import spacing_peak
 from .discretization import Grid
 from .initial import spheroid_phi
 from .solver import Solver, SolveError
@@ -21,7 +22,12 @@ RESOLUTION = 1.5
 
 def resolved_eps(grid):
     """Smallest eps the grid resolves."""
-    return RESOLUTION * spacing_peaks(grid.h)
+    return RESOLUTION * spacing_peak(grid.h)
+
+
+def max_op():
+    from mpi4py import MPI
+    return MPI.MAX
 
 
 def start_nodes(p, comm):
@@ -104,7 +110,11 @@ def run(comm):
                  nu_moment=solver.nu[2], converged=int(converged), wall_time=wall,
                  n_procs=size, cutoff=p.cutoff, quad_degree=p.quad_degree,
                  radius=p.radius, reduced_volume=p.reduced_volume, branch=p.branch,
-                 under_resolved=int(under), eps_min=eps_min)
+                 under_resolved=int(under), eps_min=eps_min, n_nodes=len(xy), max_phi=solver.max_phi(x),
+                 stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
+                 stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
+                 peak_rss_mb=comm.tompi4py().allreduce(
+                     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=max_op()))
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)

@@ -6,7 +6,6 @@ arrive by forward scatters, gradient contributions leave by reverse
 scatter-adds, Hessian rows owned elsewhere travel through MatSetValues' stash.
 """
 import numpy as np
-import scipy.sparse as sp
 from petsc4py import PETSc
 
 from .functionals import Functionals
@@ -129,8 +128,8 @@ class Problem:
         K.setLGMap(PETSc.LGMap().create(lg, comm=self.comm))
         return K
 
-    def assemble_bordered(self, x, sigma, C, diag, shift=0.0):
-        """K = [[Hess E - sigma Hess A + shift I, -C^T], [-C, diag I]] at x.
+    def assemble_bordered(self, x, sigma, C, diag):
+        """K = [[Hess E - sigma Hess A, -C^T], [-C, diag I]] at x.
 
         Collective. C is the list of NCON constraint-gradient Vecs.
         """
@@ -138,8 +137,6 @@ class Problem:
         lay = self.layout
         with self.log['Hessian']:
             H = self.forms.hessian(self.local(x), sigma)
-            if shift:
-                H = H + sp.diags(np.where(np.arange(lay.nlocal) < lay.nowned, shift, 0.0))
         with self.log['MatAssembly']:
             K.zeroEntries()
             K.setValuesLocalCSR(H.indptr.astype(PETSc.IntType), H.indices.astype(PETSc.IntType),
@@ -157,3 +154,10 @@ class Problem:
                     K.setValuesLocal(nl + j, nl + j, diag, addv=PETSc.InsertMode.ADD)
             K.assemble()
         return K
+
+    def shift_hessian(self, delta):
+        """Add delta to the diagonal of the Hessian block of the bordered matrix."""
+        K = self.bordered_matrix()
+        d = K.createVecLeft()
+        d.getArray()[:self.layout.nowned] = delta
+        K.setDiagonal(d, addv=PETSc.InsertMode.ADD)

@@ -9,7 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import maxent, nodes as nodesets, quadrature
-from .cvt import nodal_spacing
+from .nodes import nodal_spacing
 from .partition import Layout
 
 

@@ -74,3 +74,31 @@ def with_axis_mirrors(nodes, beta, radius):
     mirrors = nodes[near] * np.array([-1.0, 1.0])
     owner = np.concatenate([np.arange(len(nodes)), near])
     return np.vstack([nodes, mirrors]), np.concatenate([beta, beta[near]]), owner
+
+
+def nodal_spacing(nodes):
+    """h_a: mean distance from each node to its Delaunay (Voronoi) neighbours."""
+    from scipy.spatial import Delaunay
+    tri = Delaunay(nodes).simplices
+    edges = np.unique(np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), 1), axis=0)
+    length = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+    n = len(nodes)
+    total = np.bincount(edges[:, 0], length, n) + np.bincount(edges[:, 1], length, n)
+    return total / (np.bincount(edges[:, 0], minlength=n) + np.bincount(edges[:, 1], minlength=n))
+
+
+def spacing_peak(h, bins=60, significance=0.1):
+    """h_min: the left peak of the distribution of h (Appendix B).
+
+    The histogram (lightly smoothed) is searched for local maxima holding at
+    least `significance` of the highest bin; the smallest-h one is returned.
+    A uniform grid has a single peak; an adapted grid's refined band forms the
+    left one.
+    """
+    counts, edges = np.histogram(h, bins=bins)
+    smooth = np.convolve(counts, [0.25, 0.5, 0.25], mode='same')
+    padded = np.concatenate([[-1.0], smooth, [-1.0]])
+    peaks = np.flatnonzero((smooth >= padded[:-2]) & (smooth >= padded[2:])
+                           & (smooth >= significance * smooth.max()))
+    i = peaks[0]
+    return 0.5 * (edges[i] + edges[i + 1])

@@ -35,7 +35,7 @@ class Params:
     quad_degree: int = 4
     stage1: str = 'newton'
     mu: float = 0.0
-    stage1_rtol: float = 1e-4
+    stage1_rtol: float = 1e-3
     stage1_max_it: int = 30
     stage2_rtol: float = 1e-10
     monitor: bool = False

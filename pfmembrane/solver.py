@@ -118,8 +118,9 @@ class Solver:
             if gtol is not None and gnorm <= gtol:
                 return it
             La = self._augmented(vals, res, mu)
+            P.assemble_bordered(x, lam[0], self.C, -mu)
+            applied = 0.0
             while True:
-                P.assemble_bordered(x, lam[0], self.C, -mu, shift)
                 ksp.setOperators(K)
                 rhs.zeroEntries()
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
@@ -128,9 +129,13 @@ class Solver:
                 d.setArray(sol.getArray(readonly=True)[:nl])
                 slope = g.dot(d)
                 if (nneg is None or nneg == NCON) and slope < 0:
-                    shift = shift / 4 if shift > 1e-8 else 0.0
                     break
-                shift = max(4 * shift, 1e-4)
+                # Hess L_A is indefinite here: shift it (Nocedal-Wright 3.4), reusing the shift
+                # that worked last time as the first try.
+                shift = max(4 * shift, 1e-4) if applied else max(shift, 1e-4)
+                P.shift_hessian(shift - applied)
+                applied = shift
+            shift = applied / 4 if applied > 4e-4 else 0.0
             t = 1.0
             while True:
                 x.copy(xt)

@@ -1,0 +1,412 @@
+"""HDF5 checkpoints of a phase-field vesicle and their XDMF description.
+
+A checkpoint is one HDF5 file with the datasets ``nodes`` (N x 2 float64,
+columns r and z) and ``phi`` (N float64) and root attributes describing the
+state: ``energy``, ``area``, ``volume``, ``moment``, ``eps``, ``k``, ``c0``,
+``gamma``, ``nu_area``, ``nu_volume``, ``converged`` (0/1), ``wall_time``
+(seconds), ``n_procs``, ``box`` (Rb, Zb), ``schema`` =
+``"pfmembrane-checkpoint"`` and ``version`` = 1.  Further attributes and
+datasets are stored and returned unchanged.
+
+Files are replaced atomically: a process killed at any moment leaves at the
+target path either the previous complete file or the new complete one.
+"""
+
+import os
+import secrets
+import shutil
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+import scipy.spatial
+
+__all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
+           "read", "write_xdmf"]
+
+SCHEMA = "pfmembrane-checkpoint"
+VERSION = 1
+
+FLOAT_ATTRS = ("energy", "area", "volume", "moment", "eps", "k", "c0",
+               "gamma", "nu_area", "nu_volume", "wall_time")
+INT_ATTRS = ("converged", "n_procs")
+REQUIRED_ATTRS = ("schema", "version", "box") + FLOAT_ATTRS + INT_ATTRS
+ARRAYS = ("nodes", "phi")
+BOX_TOLERANCE = 1e-12
+
+
+class CheckpointError(Exception):
+    """A checkpoint could not be written or read; the message names the file
+    and the reason."""
+
+
+@dataclass
+class Checkpoint:
+    """The content of a checkpoint file.
+
+    Attributes
+    ----------
+    nodes : ndarray, shape (N, 2)
+        Node coordinates (r, z).
+    phi : ndarray, shape (N,)
+        Phase field at the nodes.
+    attrs : dict
+        Root attributes; numbers as Python scalars, ``box`` as an array.
+    datasets : dict
+        Datasets other than ``nodes`` and ``phi``, by name.
+    """
+
+    nodes: np.ndarray
+    phi: np.ndarray
+    attrs: dict
+    datasets: dict = field(default_factory=dict)
+
+    @property
+    def box(self):
+        """(Rb, Zb) of the computational box."""
+        rb, zb = self.attrs["box"]
+        return float(rb), float(zb)
+
+
+def write(path, nodes, phi, attrs, comm=None, datasets=None):
+    """Write a checkpoint atomically.
+
+    Collective.  Only the arguments given on rank 0 are used (the other ranks
+    may pass None); rank 0 writes and every rank returns or raises the same
+    `CheckpointError` together.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Checkpoint file to create or replace.
+    nodes : array_like, shape (N, 2)
+        Node coordinates (r, z).
+    phi : array_like, shape (N,)
+        Phase field at the nodes.
+    attrs : dict
+        Root attributes: all of the schema's (``schema`` and ``version`` may
+        be omitted; ``n_procs`` defaults to the size of `comm`) plus any
+        scalars, strings or small arrays to store alongside.
+    comm : mpi4py.MPI.Comm, optional
+        Communicator; None for a serial call.
+    datasets : dict, optional
+        Extra datasets (e.g. ``nu``, ``dirichlet``) by name.
+
+    Raises
+    ------
+    CheckpointError
+        Invalid content or a file system failure; `path` is then untouched.
+    """
+    path = os.fspath(path)
+
+    def action():
+        n_procs = 1 if comm is None else comm.Get_size()
+        arrays, stored_attrs = _prepare(nodes, phi, attrs, datasets, n_procs)
+        _replace_atomically(path, lambda tmp: _fill(tmp, arrays, stored_attrs))
+
+    _on_root(comm, action, f"cannot write checkpoint {path}")
+
+
+def read(path, comm=None, expect_box=None):
+    """Read and validate a checkpoint.
+
+    Collective.  Rank 0 reads and broadcasts, so every rank returns the same
+    `Checkpoint` or raises the same `CheckpointError` together.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Checkpoint file.
+    comm : mpi4py.MPI.Comm, optional
+        Communicator; None for a serial call.
+    expect_box : (float, float), optional
+        Required (Rb, Zb), to within 1e-12.
+
+    Returns
+    -------
+    Checkpoint
+
+    Raises
+    ------
+    CheckpointError
+        The file is missing, not HDF5, truncated, of another schema or
+        version, incomplete, inconsistent, holds non-finite values, or its
+        box differs from `expect_box`.
+    """
+    path = os.fspath(path)
+    return _on_root(comm, lambda: _load(path, expect_box),
+                    f"cannot read checkpoint {path}")
+
+
+def write_xdmf(h5path, triangles=None):
+    """Describe a checkpoint for ParaView with an XDMF 3 file beside it.
+
+    Not collective.  The triangles are stored as dataset ``triangles`` in the
+    checkpoint (replaced atomically like the checkpoint itself), so that the
+    XDMF file only refers to data in the ``.h5`` file.
+
+    Parameters
+    ----------
+    h5path : str or os.PathLike
+        Checkpoint file.
+    triangles : array_like of int, shape (M, 3), optional
+        Node indices of the triangles; by default the Delaunay triangulation
+        of the nodes.
+
+    Returns
+    -------
+    str
+        Path of the XDMF file, ``<checkpoint stem>.xdmf``.
+
+    Raises
+    ------
+    CheckpointError
+        The checkpoint is unreadable or the triangles are invalid.
+    """
+    h5path = os.fspath(h5path)
+    ckpt = read(h5path)
+    n_nodes = len(ckpt.phi)
+    try:
+        if triangles is None:
+            triangles = scipy.spatial.Delaunay(ckpt.nodes).simplices
+        triangles = np.asarray(triangles)
+        if (triangles.ndim != 2 or triangles.shape[1] != 3
+                or not np.issubdtype(triangles.dtype, np.integer)):
+            raise CheckpointError(f"triangles must be an (M, 3) integer "
+                                  f"array, got {triangles.dtype} "
+                                  f"{triangles.shape}")
+        if triangles.size and (triangles.min() < 0
+                               or triangles.max() >= n_nodes):
+            raise CheckpointError(f"triangle indices outside [0, {n_nodes})")
+        triangles = triangles.astype(np.int64)
+        _replace_atomically(h5path,
+                            lambda tmp: _add_triangles(h5path, tmp, triangles))
+        xdmf = os.path.splitext(h5path)[0] + ".xdmf"
+        text = _xdmf_text(os.path.basename(h5path), n_nodes, len(triangles))
+        _replace_atomically(xdmf, lambda tmp: _write_text(tmp, text))
+    except (CheckpointError, OSError, ValueError,
+            scipy.spatial.QhullError) as exc:
+        raise CheckpointError(f"cannot write XDMF for {h5path}: "
+                              f"{_one_line(exc)}") from exc
+    return xdmf
+
+
+def _on_root(comm, action, context):
+    """Run `action` on rank 0 and hand its result or failure to every rank."""
+    result = message = cause = None
+    if comm is None or comm.Get_rank() == 0:
+        try:
+            result = action()
+        # Any failure, expected or not, must reach the other ranks: they
+        # would otherwise wait forever in the broadcast below.
+        except Exception as exc:  # noqa: BLE001
+            message, cause = f"{context}: {_one_line(exc)}", exc
+    if comm is not None and comm.Get_size() > 1:
+        message, result = comm.bcast((message, result), root=0)
+    if message is not None:
+        raise CheckpointError(message) from cause
+    return result
+
+
+def _one_line(exc):
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _prepare(nodes, phi, attrs, datasets, n_procs):
+    """Validate what `write` is asked to store and convert it to its
+    stored types."""
+    nodes = np.asarray(nodes, dtype=np.float64)
+    phi = np.asarray(phi, dtype=np.float64)
+    _check_arrays(nodes, phi)
+    arrays = {"nodes": nodes, "phi": phi}
+    for name, data in (datasets or {}).items():
+        if name in ARRAYS:
+            raise CheckpointError(f"extra dataset {name!r} would replace the "
+                                  f"schema's one")
+        arrays[name] = np.asarray(data)
+
+    stored = dict(attrs)
+    stored.setdefault("schema", SCHEMA)
+    stored.setdefault("version", VERSION)
+    stored.setdefault("n_procs", n_procs)
+    missing = [key for key in REQUIRED_ATTRS if key not in stored]
+    if missing:
+        raise CheckpointError(f"missing attribute {missing[0]!r}")
+    if stored["schema"] != SCHEMA or stored["version"] != VERSION:
+        raise CheckpointError(f"attributes schema/version must be "
+                              f"{SCHEMA!r}/{VERSION}")
+    for keys, kind in ((FLOAT_ATTRS, float), (INT_ATTRS, int)):
+        for key in keys:
+            try:
+                stored[key] = kind(stored[key])
+            except (TypeError, ValueError) as exc:
+                raise CheckpointError(f"attribute {key!r} must be "
+                                      f"{kind.__name__}, got "
+                                      f"{stored[key]!r}") from exc
+    if stored["converged"] not in (0, 1):
+        raise CheckpointError("attribute 'converged' must be 0 or 1")
+    stored["box"] = np.asarray(stored["box"], dtype=np.float64)
+    _check_box(stored["box"])
+    return arrays, stored
+
+
+def _check_arrays(nodes, phi):
+    if nodes.ndim != 2 or nodes.shape[1] != 2:
+        raise CheckpointError(f"'nodes' has shape {nodes.shape}, expected "
+                              f"(N, 2)")
+    if phi.shape != (len(nodes),):
+        raise CheckpointError(f"'phi' has shape {phi.shape} but 'nodes' has "
+                              f"{len(nodes)} rows")
+    for name, data in (("nodes", nodes), ("phi", phi)):
+        bad = np.count_nonzero(~np.isfinite(data))
+        if bad:
+            raise CheckpointError(f"{name!r} has {bad} non-finite values")
+
+
+def _check_box(box):
+    if box.shape != (2,) or not np.all(np.isfinite(box)) or np.any(box <= 0):
+        raise CheckpointError(f"attribute 'box' must be two positive finite "
+                              f"numbers (Rb, Zb), got {box.tolist()}")
+
+
+def _fill(tmp, arrays, attrs):
+    with h5py.File(tmp, "x") as h5:
+        for name, data in arrays.items():
+            h5.create_dataset(name, data=data)
+        for key, value in attrs.items():
+            try:
+                h5.attrs[key] = value
+            except TypeError as exc:
+                raise CheckpointError(f"attribute {key!r} of type "
+                                      f"{type(value).__name__} cannot be "
+                                      f"stored in HDF5") from exc
+
+
+def _load(path, expect_box):
+    if not os.path.isfile(path):
+        raise CheckpointError("no such file")
+    if not h5py.is_hdf5(path):
+        raise CheckpointError("not an HDF5 file")
+    try:
+        with h5py.File(path, "r") as h5:
+            attrs = {key: _python_value(value)
+                     for key, value in h5.attrs.items()}
+            _check_header(attrs)
+            missing = [name for name in ARRAYS if name not in h5]
+            if missing:
+                raise CheckpointError(f"missing dataset {missing[0]!r}")
+            arrays = {name: h5[name][()] for name in h5
+                      if isinstance(h5[name], h5py.Dataset)}
+    except OSError as exc:
+        raise CheckpointError(f"truncated or corrupt HDF5 file "
+                              f"({_one_line(exc)})") from exc
+    nodes = np.asarray(arrays.pop("nodes"), dtype=np.float64)
+    phi = np.asarray(arrays.pop("phi"), dtype=np.float64)
+    _check_arrays(nodes, phi)
+    attrs["box"] = np.asarray(attrs["box"], dtype=np.float64)
+    _check_box(attrs["box"])
+    if expect_box is not None:
+        expected = np.asarray(expect_box, dtype=np.float64)
+        if np.any(np.abs(attrs["box"] - expected) > BOX_TOLERANCE):
+            raise CheckpointError(f"box (Rb, Zb) = "
+                                  f"{tuple(attrs['box'].tolist())} differs "
+                                  f"from the expected "
+                                  f"{tuple(expected.tolist())}")
+    return Checkpoint(nodes, phi, attrs, arrays)
+
+
+def _check_header(attrs):
+    """Check the schema first so that a foreign file is reported as such
+    rather than as an incomplete checkpoint."""
+    for key, expected in (("schema", SCHEMA), ("version", VERSION)):
+        if key not in attrs:
+            raise CheckpointError(f"missing attribute {key!r} (not a "
+                                  f"{SCHEMA} file)")
+        if attrs[key] != expected:
+            raise CheckpointError(f"wrong {key} {attrs[key]!r}, expected "
+                                  f"{expected!r}")
+    missing = [key for key in REQUIRED_ATTRS if key not in attrs]
+    if missing:
+        raise CheckpointError(f"missing attribute {missing[0]!r}")
+
+
+def _python_value(value):
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _replace_atomically(path, fill):
+    """Create `path` through ``fill(tmp)`` so that it appears at once and
+    complete, or not at all.
+
+    The temporary file lives in the same directory because ``os.replace`` is
+    atomic only within one file system.  Fsyncing the file before the rename
+    and the directory after it keeps the new content across a power loss.
+    """
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise CheckpointError(f"{directory} is not an existing directory")
+    if not os.access(directory, os.W_OK):
+        raise CheckpointError(f"directory {directory} is not writable")
+    tmp = os.path.join(directory, f".{os.path.basename(path)}."
+                                  f"{secrets.token_hex(8)}.tmp")
+    try:
+        fill(tmp)
+        _fsync(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    _fsync(directory)
+
+
+def _fsync(path):
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _add_triangles(h5path, tmp, triangles):
+    shutil.copyfile(h5path, tmp)
+    with h5py.File(tmp, "r+") as h5:
+        if "triangles" in h5:
+            del h5["triangles"]
+        h5.create_dataset("triangles", data=triangles)
+
+
+def _write_text(tmp, text):
+    with open(tmp, "x", encoding="utf-8") as stream:
+        stream.write(text)
+
+
+def _xdmf_text(h5name, n_nodes, n_triangles):
+    root = ET.Element("Xdmf", Version="3.0")
+    domain = ET.SubElement(root, "Domain")
+    grid = ET.SubElement(domain, "Grid", Name="pfmembrane",
+                         GridType="Uniform")
+    topology = ET.SubElement(grid, "Topology", TopologyType="Triangle",
+                             NumberOfElements=str(n_triangles))
+    _data_item(topology, f"{h5name}:/triangles", f"{n_triangles} 3", "Int")
+    geometry = ET.SubElement(grid, "Geometry", GeometryType="XY")
+    _data_item(geometry, f"{h5name}:/nodes", f"{n_nodes} 2", "Float")
+    attribute = ET.SubElement(grid, "Attribute", Name="phi",
+                              AttributeType="Scalar", Center="Node")
+    _data_item(attribute, f"{h5name}:/phi", str(n_nodes), "Float")
+    ET.indent(root)
+    return ('<?xml version="1.0" encoding="utf-8"?>\n'
+            '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+            + ET.tostring(root, encoding="unicode") + "\n")
+
+
+def _data_item(parent, reference, dimensions, number_type):
+    # Both the triangles and the arrays are stored as 8-byte numbers.
+    item = ET.SubElement(parent, "DataItem", Dimensions=dimensions,
+                         NumberType=number_type, Precision="8", Format="HDF")
+    item.text = reference

@@ -1,0 +1,325 @@
+"""Figures of pfmembrane checkpoints.
+
+Command line::
+
+    python -m pfmembrane.plot CHECKPOINT.h5 [more.h5 ...] [-o OUTDIR]
+        [--what field,nodes,section,3d,spacing] [--z-mid Z] [--dpi DPI]
+
+writes ``<stem>_<what>.png`` for every checkpoint and figure (the
+``section`` figure gathers all checkpoints and is named after the first one)
+into OUTDIR, by default the checkpoint's directory, and prints each path.
+
+The fields live on scattered nodes; the figures interpolate them linearly on
+the Delaunay triangulation of the nodes.
+"""
+
+import argparse
+import os
+import sys
+
+import matplotlib
+import matplotlib.pyplot as plt
+import matplotlib.tri as mtri
+import numpy as np
+from matplotlib.figure import Figure
+
+from pfmembrane import checkpoint
+
+__all__ = ["FIGURES", "triangulation", "zero_contour", "nodal_spacing",
+           "plot_field", "plot_section", "plot_3d", "plot_spacing", "main"]
+
+FIGURES = ("field", "nodes", "section", "3d", "spacing")
+
+
+def triangulation(ckpt):
+    """Delaunay triangulation of the nodes in the (r, z) half-plane.
+
+    Not collective.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.checkpoint.Checkpoint
+
+    Returns
+    -------
+    matplotlib.tri.Triangulation
+    """
+    return mtri.Triangulation(ckpt.nodes[:, 0], ckpt.nodes[:, 1])
+
+
+def zero_contour(ckpt):
+    """The membrane, phi = 0, as polylines in the (r, z) half-plane.
+
+    Not collective.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.checkpoint.Checkpoint
+
+    Returns
+    -------
+    list of ndarray, shape (M, 2)
+        One (r, z) polyline per connected piece of the level set.
+    """
+    # A figure that is never shown does the contouring, so that the
+    # caller's figures stay untouched.
+    axes = Figure().add_subplot()
+    contours = axes.tricontour(triangulation(ckpt), ckpt.phi, levels=[0.0])
+    return [line for line in contours.allsegs[0] if len(line) > 1]
+
+
+def nodal_spacing(nodes):
+    """Nodal spacing h_a: mean distance of each node to its Delaunay
+    neighbours.
+
+    Not collective.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (N, 2)
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    edges = mtri.Triangulation(nodes[:, 0], nodes[:, 1]).edges
+    lengths = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+    ends = edges.ravel()
+    total = np.bincount(ends, weights=np.repeat(lengths, 2),
+                        minlength=len(nodes))
+    return total / np.bincount(ends, minlength=len(nodes))
+
+
+def plot_field(ckpt, ax=None, nodes=True):
+    """Draw phi over the full cross section with the membrane phi = 0.
+
+    Not collective.  The computed half-plane r >= 0 is mirrored to r < 0.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.checkpoint.Checkpoint
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into; a new figure by default.
+    nodes : bool
+        Also draw the nodes as small dots, on the mirrored half only so that
+        the field stays readable on the other.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if ax is None:
+        _, ax = plt.subplots()
+    half = triangulation(ckpt)
+    mirror = mtri.Triangulation(-half.x, half.y, half.triangles)
+    for tri in (half, mirror):
+        image = ax.tripcolor(tri, ckpt.phi, shading="gouraud", cmap="RdBu_r",
+                             vmin=-1.0, vmax=1.0)
+        ax.tricontour(tri, ckpt.phi, levels=[0.0], colors="k",
+                      linewidths=1.2)
+    if nodes:
+        ax.plot(-ckpt.nodes[:, 0], ckpt.nodes[:, 1], ".", color="k",
+                markersize=1.5)
+    ax.figure.colorbar(image, ax=ax, label=r"$\phi$")
+    rb, zb = ckpt.box
+    ax.set_xlim(-rb, rb)
+    ax.set_ylim(0.0, zb)
+    ax.set_aspect("equal")
+    ax.set_xlabel("r")
+    ax.set_ylabel("z")
+    ax.set_title(_summary(ckpt))
+    return ax
+
+
+def plot_section(ckpts, ax=None, z_mid=None, samples=400):
+    """Draw phi along the horizontal line z = z_mid for several checkpoints.
+
+    Not collective.
+
+    Parameters
+    ----------
+    ckpts : sequence of pfmembrane.checkpoint.Checkpoint
+        Checkpoints to compare, e.g. for several eps.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into; a new figure by default.
+    z_mid : float, optional
+        Height of the section; by default the centre of each box.
+    samples : int
+        Number of points along r in [0, Rb].
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if ax is None:
+        _, ax = plt.subplots()
+    for ckpt in ckpts:
+        rb, zb = ckpt.box
+        z = 0.5 * zb if z_mid is None else z_mid
+        r = np.linspace(0.0, rb, samples)
+        phi = mtri.LinearTriInterpolator(triangulation(ckpt), ckpt.phi)(
+            r, np.full_like(r, z))
+        ax.plot(r, phi.filled(np.nan),
+                label=f"eps = {ckpt.attrs['eps']:g}")
+    ax.axhline(0.0, color="k", linewidth=0.5)
+    ax.set_xlabel("r")
+    ax.set_ylabel(r"$\phi$")
+    ax.set_title("z = Zb / 2" if z_mid is None else f"z = {z_mid:g}")
+    ax.legend()
+    return ax
+
+
+def plot_3d(ckpt, ax=None, n_theta=48):
+    """Draw the membrane as the surface of revolution of phi = 0 about the
+    z axis.
+
+    Not collective.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.checkpoint.Checkpoint
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D, optional
+        3D axes to draw into; a new figure by default.
+    n_theta : int
+        Number of meridians.
+
+    Returns
+    -------
+    mpl_toolkits.mplot3d.axes3d.Axes3D
+    """
+    if ax is None:
+        ax = plt.figure().add_subplot(projection="3d")
+    theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
+    for line in zero_contour(ckpt):
+        r, z = line[:, :1], line[:, 1:]
+        ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
+                        np.broadcast_to(z, (len(z), n_theta)),
+                        color="tab:orange", linewidth=0)
+    rb, zb = ckpt.box
+    ax.set_xlim(-rb, rb)
+    ax.set_ylim(-rb, rb)
+    ax.set_zlim(0.0, zb)
+    ax.set_box_aspect((2.0 * rb, 2.0 * rb, zb))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.set_title(_summary(ckpt))
+    return ax
+
+
+def plot_spacing(ckpt, ax=None, bins=40):
+    """Histogram of the nodal spacing relative to a uniform grid.
+
+    Not collective.  The reference sqrt(Rb Zb / N) is the spacing of a
+    uniform square grid with the same number of nodes in the same box, so
+    negative values mark refined nodes.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.checkpoint.Checkpoint
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into; a new figure by default.
+    bins : int
+        Number of histogram bins.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if ax is None:
+        _, ax = plt.subplots()
+    rb, zb = ckpt.box
+    uniform = np.sqrt(rb * zb / len(ckpt.nodes))
+    ax.hist(nodal_spacing(ckpt.nodes) - uniform, bins=bins)
+    ax.axvline(0.0, color="k", linewidth=0.5)
+    ax.set_xlabel(r"$h_a - h_{uniform}$")
+    ax.set_ylabel("nodes")
+    ax.set_title(f"N = {len(ckpt.nodes)}, h_uniform = {uniform:.3g}")
+    return ax
+
+
+def main(argv=None):
+    """Write the requested figures of the given checkpoints as PNG files.
+
+    Not collective.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command line arguments; ``sys.argv[1:]`` by default.
+
+    Returns
+    -------
+    int
+        Exit status: 0 on success, 1 if a checkpoint cannot be read.
+    """
+    args = _parser().parse_args(argv)
+    matplotlib.use("Agg")
+    try:
+        ckpts = [checkpoint.read(path) for path in args.checkpoints]
+    except checkpoint.CheckpointError as exc:
+        print(f"pfmembrane.plot: error: {exc}", file=sys.stderr)
+        return 1
+    draw = {
+        "field": lambda ckpt: plot_field(ckpt, nodes=False),
+        "nodes": lambda ckpt: plot_field(ckpt, nodes=True),
+        "3d": plot_3d,
+        "spacing": plot_spacing,
+    }
+    for what in args.what:
+        if what == "section":
+            ax = plot_section(ckpts, z_mid=args.z_mid)
+            _save(ax.figure, args.checkpoints[0], what, args)
+            continue
+        for path, ckpt in zip(args.checkpoints, ckpts):
+            _save(draw[what](ckpt).figure, path, what, args)
+    return 0
+
+
+def _parser():
+    parser = argparse.ArgumentParser(
+        prog="python -m pfmembrane.plot",
+        description="Plot pfmembrane checkpoints as PNG files.")
+    parser.add_argument("checkpoints", nargs="+", metavar="CHECKPOINT.h5")
+    parser.add_argument("-o", "--outdir",
+                        help="output directory (default: beside each "
+                             "checkpoint)")
+    parser.add_argument("--what", type=_figure_list, default=list(FIGURES),
+                        help="comma-separated figures among "
+                             f"{','.join(FIGURES)} (default: all)")
+    parser.add_argument("--z-mid", type=float,
+                        help="height of the section (default: box centre)")
+    parser.add_argument("--dpi", type=float, default=150.0,
+                        help="resolution of the PNG files (default: 150)")
+    return parser
+
+
+def _figure_list(text):
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    unknown = sorted(set(names) - set(FIGURES))
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"unknown figure {', '.join(unknown) or repr(text)}; choose among "
+            f"{','.join(FIGURES)}")
+    return names
+
+
+def _summary(ckpt):
+    return (f"eps = {ckpt.attrs['eps']:g}, E = {ckpt.attrs['energy']:.6g}"
+            + ("" if ckpt.attrs["converged"] else " (not converged)"))
+
+
+def _save(figure, ckpt_path, what, args):
+    outdir = args.outdir or os.path.dirname(os.path.abspath(ckpt_path))
+    os.makedirs(outdir, exist_ok=True)
+    stem = os.path.splitext(os.path.basename(ckpt_path))[0]
+    out = os.path.join(outdir, f"{stem}_{what}.png")
+    figure.savefig(out, dpi=args.dpi, bbox_inches="tight")
+    # Closing releases pyplot's reference, which would keep every figure of
+    # a long list of checkpoints alive.
+    plt.close(figure)
+    print(out)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

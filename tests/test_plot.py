@@ -1,0 +1,179 @@
+"""Tests of pfmembrane.plot on synthetic checkpoints of an ellipse."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.image  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from pfmembrane import checkpoint, plot  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+BOX = (1.0, 2.0)
+A, B, ZC = 0.5, 0.8, 1.0  # semi-axes along r and z, centre height
+TIMEOUT = 60
+
+
+def ellipse_checkpoint(path, eps, seed=0):
+    """Write a checkpoint of phi = tanh(d / (sqrt(2) eps)) for an ellipse,
+    on a coarse grid plus nodes clustered at the membrane."""
+    rng = np.random.default_rng(seed)
+    rb, zb = BOX
+    r, z = np.meshgrid(np.linspace(0.0, rb, 11), np.linspace(0.0, zb, 21))
+    t = rng.uniform(0.0, np.pi, 300)
+    scale = 1.0 + 0.08 * rng.standard_normal(300)
+    band = np.column_stack([A * scale * np.sin(t), ZC + B * scale * np.cos(t)])
+    band = band[(band[:, 0] > 0.0) & (band[:, 0] < rb)]
+    nodes = np.vstack([np.column_stack([r.ravel(), z.ravel()]), band])
+    # Signed distance to the ellipse, to first order in the radial defect.
+    d = min(A, B) * (1.0 - np.hypot(nodes[:, 0] / A, (nodes[:, 1] - ZC) / B))
+    phi = np.tanh(d / (np.sqrt(2.0) * eps))
+    attrs = {"energy": 8.0 * np.pi, "area": 4.0, "volume": 1.0,
+             "moment": 0.0, "eps": eps, "k": 1.0, "c0": 0.0, "gamma": 0.0,
+             "nu_area": 0.0, "nu_volume": 0.0, "converged": 1,
+             "wall_time": 1.0, "box": BOX}
+    checkpoint.write(path, nodes, phi, attrs)
+    return checkpoint.read(path)
+
+
+@pytest.fixture
+def pair(tmp_path):
+    """Two checkpoints of the same ellipse with different eps."""
+    paths = [tmp_path / "thin.h5", tmp_path / "thick.h5"]
+    ckpts = [ellipse_checkpoint(path, eps)
+             for path, eps in zip(paths, (0.03, 0.08))]
+    return paths, ckpts
+
+
+def run_plot(*args, cwd=None):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT)] + [p for p in [env.get("PYTHONPATH")] if p])
+    return subprocess.run([sys.executable, "-m", "pfmembrane.plot",
+                           *map(str, args)], capture_output=True, text=True,
+                          env=env, cwd=cwd, timeout=TIMEOUT)
+
+
+def assert_picture(path, min_bytes=10_000):
+    """The PNG exists, is not tiny and shows more than one colour."""
+    assert path.stat().st_size > min_bytes, path
+    pixels = matplotlib.image.imread(path)
+    colours = np.unique(pixels.reshape(-1, pixels.shape[-1]), axis=0)
+    assert len(colours) > 20, path
+
+
+def test_cli_writes_every_figure(pair, tmp_path):
+    paths, _ = pair
+    outdir = tmp_path / "figures"
+
+    # A low resolution keeps the nine figures quick to render.
+    result = run_plot(*paths, "-o", outdir, "--dpi", 80)
+
+    assert result.returncode == 0, result.stderr
+    expected = [outdir / f"{path.stem}_{what}.png"
+                for what in plot.FIGURES for path in paths
+                if what != "section" or path == paths[0]]
+    assert result.stdout.split() == [str(path) for path in expected]
+    assert sorted(outdir.iterdir()) == sorted(expected)
+    for path in expected:
+        assert_picture(path, min_bytes=5_000)
+
+
+def test_cli_selected_figures_beside_checkpoint(pair, tmp_path):
+    paths, _ = pair
+
+    result = run_plot(paths[1], "--what", "section,field", cwd=ROOT)
+
+    assert result.returncode == 0, result.stderr
+    written = [tmp_path / "thick_section.png", tmp_path / "thick_field.png"]
+    assert result.stdout.split() == [str(path) for path in written]
+    assert {p.name for p in tmp_path.glob("*.png")} == {p.name
+                                                        for p in written}
+    for path in written:
+        assert_picture(path)
+
+
+def test_cli_rejects_unknown_figure(pair):
+    paths, _ = pair
+
+    result = run_plot(paths[0], "--what", "field,movie")
+
+    assert result.returncode == 2
+    assert "unknown figure movie" in result.stderr
+
+
+def test_cli_reports_unreadable_checkpoint(tmp_path):
+    bad = tmp_path / "bad.h5"
+    bad.write_text("not a checkpoint")
+
+    result = run_plot(bad)
+
+    assert result.returncode == 1
+    assert f"cannot read checkpoint {bad}: not an HDF5 file" in result.stderr
+    assert list(tmp_path.glob("*.png")) == []
+
+
+def test_zero_contour_follows_the_ellipse(pair):
+    _, (thin, _) = pair
+
+    [line] = plot.zero_contour(thin)
+
+    radius = np.hypot(line[:, 0] / A, (line[:, 1] - ZC) / B)
+    np.testing.assert_allclose(radius, 1.0, atol=0.05)
+    # From the axis at the bottom pole round to the axis at the top pole.
+    assert np.isclose(line[:, 1].min(), ZC - B, atol=0.05)
+    assert np.isclose(line[:, 1].max(), ZC + B, atol=0.05)
+    assert line[:, 0].max() == pytest.approx(A, abs=0.05)
+
+
+def test_section_crosses_zero_at_the_membrane(pair):
+    _, ckpts = pair
+
+    ax = plot.plot_section(ckpts)
+
+    lines = [line for line in ax.get_lines() if line.get_label()[0] != "_"]
+    assert [line.get_label() for line in lines] == ["eps = 0.03",
+                                                    "eps = 0.08"]
+    for line in lines:
+        r, phi = line.get_xydata().T
+        assert phi[0] > 0.99 and phi[-1] < -0.99
+        crossing = r[np.argmax(phi < 0.0)]
+        assert crossing == pytest.approx(A, abs=0.02)
+    plt.close(ax.figure)
+
+
+def test_field_mirrors_and_marks_nodes(pair):
+    _, (thin, _) = pair
+
+    ax = plot.plot_field(thin, nodes=True)
+
+    [dots] = ax.get_lines()
+    np.testing.assert_array_equal(dots.get_xdata(), -thin.nodes[:, 0])
+    assert ax.get_xlim() == (-BOX[0], BOX[0])
+    plt.close(ax.figure)
+    bare = plot.plot_field(thin, nodes=False)
+    assert bare.get_lines() == []
+    plt.close(bare.figure)
+
+
+def test_nodal_spacing_of_a_triangular_lattice():
+    h = 0.1
+    i, j = np.meshgrid(np.arange(12), np.arange(12))
+    nodes = np.column_stack([(i + 0.5 * (j % 2)).ravel() * h,
+                             j.ravel() * h * np.sqrt(3.0) / 2.0])
+
+    spacing = plot.nodal_spacing(nodes)
+
+    # Every interior node has six neighbours at distance h; hull edges may
+    # be longer, so nodes on the boundary are left out.
+    interior = (i > 1) & (i < 10) & (j > 1) & (j < 10)
+    np.testing.assert_allclose(spacing[interior.ravel()], h, rtol=1e-12)
+    assert np.all(spacing >= h * (1.0 - 1e-12))
