@@ -10,7 +10,7 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
            OMPI_MCA_rmaps_base_oversubscribe='1', OMPI_MCA_btl_vader_single_copy_mechanism='none')
-SMALL = ['-pf_nodes', '1500', '-pf_eps', '0.08']
+SMALL = ['-pf_nodes', '1000', '-pf_box', '0.8,1.0', '-pf_eps', '0.06']
 
 
 def pfm(*args, n=2, timeout=240):
@@ -93,7 +93,8 @@ def test_restart_reaches_the_same_answer(runs):
 
 def test_dumbbell_options_file_runs(tmp_path):
     path = str(tmp_path / 'dumb.h5')
-    out = pfm('-options_file', 'options/dumbbell.opts', *SMALL, '-pf_output', path)
+    out = pfm('-options_file', 'options/dumbbell.opts', '-pf_nodes', '1200', '-pf_box', '0.6,2.0',
+              '-pf_eps', '0.06', '-pf_output', path)
     assert out.returncode == 0, out.stderr
     a, phi = _energy(path)
     with h5py.File(path, 'r') as f:
