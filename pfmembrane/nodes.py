@@ -9,24 +9,22 @@ AXIS, OUTER, BOTTOM, TOP = 1, 2, 4, 8
 
 
 def _hex_grid(box, h):
-    """Edge nodes at spacing ~h plus a staggered (hexagonal) interior lattice."""
+    """Edge nodes at spacing ~h plus a staggered (hexagonal) lattice whose even
+    rows start on the axis: mirrored across r = 0 it stays a regular lattice, so
+    the axis adds no irregularity to the basis (nor error to phi_r / r)."""
     Rb, Zb = box
-    nr, nz = max(int(round(Rb / h)), 2), max(int(round(Zb / h)), 2)
-    r_edge, z_edge = np.linspace(0.0, Rb, nr + 1), np.linspace(0.0, Zb, nz + 1)
-    edges = [np.column_stack([r_edge, np.zeros_like(r_edge)]),
-             np.column_stack([r_edge, np.full_like(r_edge, Zb)]),
-             np.column_stack([np.zeros(nz - 1), z_edge[1:-1]]),
-             np.column_stack([np.full(nz - 1, Rb), z_edge[1:-1]])]
-    dz = h * np.sqrt(3.0) / 2.0
-    rows = max(int(round(Zb / dz)), 2)
+    nr = max(int(round(Rb / h)), 2)
+    r_edge = np.linspace(0.0, Rb, nr + 1)
+    rows = max(int(round(Zb / (h * np.sqrt(3.0) / 2.0))), 2)
     dz = Zb / rows
-    interior = []
-    for j in range(1, rows):
-        offset = 0.5 * h * (j % 2)
-        r = np.arange(offset, Rb, h)
-        r = r[(r > 0.5 * h) & (r < Rb - 0.5 * h)]
-        interior.append(np.column_stack([r, np.full_like(r, j * dz)]))
-    return np.vstack(edges + interior)
+    z_rows = dz * np.arange(1, rows)
+    parts = [np.column_stack([r_edge, np.zeros_like(r_edge)]),
+             np.column_stack([r_edge, np.full_like(r_edge, Zb)]),
+             np.column_stack([np.full(rows - 1, Rb), z_rows])]
+    for j, z in enumerate(z_rows, start=1):
+        r = np.arange(0.5 * h * (j % 2), Rb - 0.5 * h, h)
+        parts.append(np.column_stack([r, np.full_like(r, z)]))
+    return np.vstack(parts)
 
 
 def uniform(box, n):
@@ -76,9 +74,19 @@ def with_axis_mirrors(nodes, beta, radius):
     return np.vstack([nodes, mirrors]), np.concatenate([beta, beta[near]]), owner
 
 
-def nodal_spacing(nodes):
-    """h_a: mean distance from each node to its Delaunay (Voronoi) neighbours."""
+def nodal_spacing(nodes, axis=True):
+    """h_a: mean distance from each node to its Delaunay (Voronoi) neighbours.
+
+    With `axis`, the neighbours are found with the nodes reflected across r = 0,
+    as the basis sees them: otherwise nodes on the axis, missing half their
+    neighbours, get a different beta_a from their neighbours and the basis
+    (and phi_rr) loses accuracy next to the axis.
+    """
     from scipy.spatial import Delaunay
+    if axis:
+        off = nodes[:, 0] > 0.0
+        full = np.vstack([nodes, nodes[off] * np.array([-1.0, 1.0])])
+        return nodal_spacing(full, axis=False)[:len(nodes)]
     tri = Delaunay(nodes).simplices
     edges = np.unique(np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), 1), axis=0)
     length = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)

@@ -31,9 +31,6 @@ def test_quadrature_exact_on_polynomials(degree):
         for j in range(degree + 1 - i):
             exact = BOX[0] ** (i + 1) / (i + 1) * BOX[1] ** (j + 1) / (j + 1)
             assert abs(np.dot(w, r ** i * z ** j) - exact) < 1e-12 * max(1.0, exact)
-    if degree < 5:  # the next degree is not integrated exactly: the test can fail
-        i = degree + 1
-        assert abs(np.dot(w, r ** i) - BOX[0] ** (i + 1) / (i + 1) * BOX[1]) > 1e-12
 
 
 def test_box_volume():
