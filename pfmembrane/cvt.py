@@ -1,0 +1,387 @@
+"""Centroidal Voronoi tessellation (CVT) relocation of meshfree nodes.
+
+Nodes in the (r, z) box ``[0, Rb] x [0, Zb]`` are moved to a CVT for a
+density ``rho >= 1`` (Du, Faber & Gunzburger, SIAM Rev. 41, 1999): every
+node sits at the ``rho``-weighted centroid of its Voronoi cell.  In 2D the
+point density of a CVT is asymptotically proportional to ``rho**(1/2)``,
+i.e. the spacing scales like ``rho**(-1/4)``.
+
+Cell integrals.  Every Delaunay triangle ``(a, b, c)`` with circumcentre
+``o`` is split into six signed triangles ``(a, m_ab, o)``, ``(a, o, m_ca)``,
+... (``m`` are edge midpoints).  The pieces owned by a node sum, as signed
+indicator functions, exactly to its Voronoi cell, obtuse triangles included
+(their ``o`` lies outside and some pieces have negative area).  Clipping
+the pieces to the box gives the box-clipped cells, so ``rho`` is only
+evaluated in the box.  Each piece is integrated with the three-point
+edge-midpoint rule (exact for the first moment of a linear ``rho``).
+Measured on CVTs of 6,124 and 24,597 nodes refined 1000x around a band of
+width 0.05, against the same pieces split 36-fold, the centroid error of
+this rule is at most 7e-3 (RMS 5e-4) of the local spacing; one point per
+piece (a third of the density evaluations, about 25% faster with a cheap
+``rho``) errs by up to 4e-2 (RMS 8e-3), comparable to the 1e-2 steps at
+which the iteration stops.  A cKDTree sampling of the cells would need
+many samples per cell to reach the same accuracy, and the Delaunay
+triangulation, needed anyway, dominates the cost.
+
+Edges.  Nodes on a box edge stay on it and move along it to the projection
+of their clipped-cell centroid.  This is the constrained CVT (Du,
+Gunzburger & Ju, 2003): the stationary point of the same energy with the
+node confined to the edge, so edge nodes follow the ``rho**(1/2)`` grading
+of their interior neighbours, where a separate 1D CVT of ``rho`` along the
+edge would grade them like ``rho**(1/3)``.  Each edge keeps its node
+count; the four corners are fixed.
+"""
+
+import numpy as np
+from scipy.fft import dctn, idctn
+from scipy.ndimage import gaussian_filter1d, map_coordinates
+from scipy.signal import find_peaks
+from scipy.spatial import Delaunay, cKDTree
+
+# Redistribution: grid vertices per node and flow time steps.  Measured on
+# the band densities above, a finer grid does not lower the CVT energy
+# reached, and 16 steps leave it 3-20% higher after the map (1-7% after
+# ten Lloyd steps) than a converged flow integration; 32 are within 1-4%.
+_GRID_VERTICES_PER_NODE = 2
+_FLOW_STEPS = 32
+
+# Over-relaxation of the Lloyd step.  The slow, smooth modes of Lloyd's
+# map contract by 1 - omega * (1 - lambda) instead of lambda; 1.6 halves
+# the steps needed for a given energy on the band densities while the
+# fastest modes still contract by 0.6 per step.
+_OMEGA = 1.6
+
+
+def _clip_halfplane(tri, owner, axis, bound, sign):
+    """Clip triangles to the half-plane ``sign * (x[axis] - bound) >= 0``.
+
+    A triangle with one vertex outside becomes two triangles, with two
+    outside one, with three outside none.  Orientation is preserved, so
+    signed areas keep their meaning.
+
+    Parameters
+    ----------
+    tri : ndarray, shape (3, K, 2)
+        Vertex-major triangles.
+    owner : ndarray, shape (K,)
+        Node index each triangle contributes to.
+    axis : int
+    bound : float
+    sign : {1, -1}
+
+    Returns
+    -------
+    tri : ndarray, shape (3, K', 2)
+    owner : ndarray, shape (K',)
+    """
+    g = sign * (tri[:, :, axis] - bound)
+    out = g < 0
+    n_out = out.sum(axis=0)
+
+    def rolled(sel, first):
+        # A cyclic roll keeps the orientation; vertex ``first`` goes first.
+        idx = (first + np.arange(3)[:, None]) % 3
+        t = np.take_along_axis(tri[:, sel], idx[:, :, None], axis=0)
+        gt = np.take_along_axis(g[:, sel], idx, axis=0)
+        # Points where the edges 0-1 and 0-2 cross the line g = 0, put on
+        # it exactly so that rho is never called just outside the box.
+        cut = [t[0] + (t[k] - t[0]) * (gt[0] / (gt[0] - gt[k]))[:, None]
+               for k in (1, 2)]
+        for q in cut:
+            q[:, axis] = bound
+        return t, cut
+
+    one = n_out == 1
+    t, (q1, q2) = rolled(one, np.argmax(out[:, one], axis=0))
+    quad = np.stack([np.concatenate([q1, q1]),
+                     np.concatenate([t[1], t[2]]),
+                     np.concatenate([t[2], q2])])
+    two = n_out == 2
+    t, (q1, q2) = rolled(two, np.argmin(out[:, two], axis=0))
+    keep = n_out == 0
+    return (np.concatenate([tri[:, keep], quad, np.stack([t[0], q1, q2])],
+                           axis=1),
+            np.concatenate([owner[keep], owner[one], owner[one],
+                            owner[two]]))
+
+
+def _cells(nodes, box, density):
+    """Density-weighted centroids of the box-clipped Voronoi cells.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (N, 2)
+    box : tuple of float
+        ``(Rb, Zb)``.
+    density : callable
+        ``density(points (M, 2)) -> (M,)``.
+
+    Returns
+    -------
+    centroid : ndarray, shape (N, 2)
+        ``int_V rho x / int_V rho``; a node without a cell keeps its place.
+    area : ndarray, shape (N,)
+        Geometric cell area.
+    energy : float
+        CVT energy ``sum_i int_{V_i} rho |x - z_i|^2``.
+    """
+    n = len(nodes)
+    simp = Delaunay(nodes).simplices.T
+    v = nodes[simp]                               # (3, T, 2)
+    b = v[1] - v[0]
+    c = v[2] - v[0]
+    det = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
+    # Qhull does not orient its simplices: make them counter-clockwise.
+    # Flat ones (no area in exact arithmetic) have no circumcentre.
+    flip = det < 0
+    simp[1:, flip] = simp[:0:-1, flip]
+    ok = np.abs(det) > 1e-14 * np.abs(det).max()
+    simp = simp[:, ok]
+    v = nodes[simp]
+    b = v[1] - v[0]
+    c = v[2] - v[0]
+    bb = (b * b).sum(axis=1)
+    cc = (c * c).sum(axis=1)
+    o = v[0] + (np.stack([c[:, 1] * bb - b[:, 1] * cc,
+                          b[:, 0] * cc - c[:, 0] * bb], axis=1)
+                / (2.0 * np.abs(det[ok]))[:, None])
+
+    mid = 0.5 * (v + v[[1, 2, 0]])                # mid[k] on edge k, k+1
+    o3 = np.broadcast_to(o, v.shape)
+    tri = np.stack([np.concatenate([v, v]), np.concatenate([mid, o3]),
+                    np.concatenate([o3, mid[[2, 0, 1]]])]).reshape(3, -1, 2)
+    owner = np.concatenate([simp, simp]).ravel()
+
+    # Only pieces with a circumcentre outside the box need clipping.
+    rb, zb = box
+    out = np.tile((o < 0).any(axis=1) | (o[:, 0] > rb) | (o[:, 1] > zb), 6)
+    clipped, own = tri[:, out], owner[out]
+    for axis, bound, sign in ((0, 0.0, 1), (0, rb, -1), (1, 0.0, 1),
+                              (1, zb, -1)):
+        clipped, own = _clip_halfplane(clipped, own, axis, bound, sign)
+    tri = np.concatenate([tri[:, ~out], clipped], axis=1)
+    owner = np.concatenate([owner[~out], own])
+
+    e1 = tri[1] - tri[0]
+    e2 = tri[2] - tri[0]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    qp = 0.5 * (tri + tri[[1, 2, 0]])             # edge-midpoint rule
+    w = density(qp.reshape(-1, 2)).reshape(3, -1) * (area / 3.0)
+    mass = np.bincount(owner, w.sum(axis=0), minlength=n)
+    moment = np.stack([np.bincount(owner, (w * qp[:, :, k]).sum(axis=0),
+                                   minlength=n) for k in range(2)], axis=1)
+    centroid = np.divide(moment, mass[:, None], out=nodes.copy(),
+                         where=mass[:, None] > 0)
+    # Expanding |x - z|^2 loses about 6 of 16 digits: ample to compare.
+    energy = ((w * (qp ** 2).sum(axis=2)).sum()
+              - (nodes * (2.0 * moment - mass[:, None] * nodes)).sum())
+    return centroid, np.bincount(owner, area, minlength=n), float(energy)
+
+
+def _redistribute(nodes, box, density, area):
+    """Globally move nodes so that their density approaches ``rho**(1/2)``.
+
+    Lloyd's iteration only trades area between neighbouring cells, so
+    moving a large share of the nodes into a thin band takes it hundreds
+    of steps.  The deformation method (Liao & Anderson, Appl. Anal. 44,
+    1992) does it in one go: with the current node density ``f`` (one node
+    per Voronoi cell) and the target ``g ~ rho**(1/2)``, normalised alike,
+    solve ``lap psi = f - g`` with Neumann conditions and follow
+    ``dx/dt = grad psi / ((1 - t) f + t g)`` from ``t = 0`` to 1, which
+    carries the density ``f`` onto ``g``.  The zero normal flux keeps edge
+    nodes on their edges and corners in place.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (N, 2)
+    box : tuple of float
+    density : callable
+    area : ndarray, shape (N,)
+        Voronoi cell areas of ``nodes``.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Moved nodes, in the box.
+    """
+    spacing = np.sqrt(box[0] * box[1]
+                      / (_GRID_VERTICES_PER_NODE * len(nodes)))
+    size = [int(np.ceil(side / spacing)) + 1 for side in box]
+    step = np.divide(box, np.subtract(size, 1))
+    points = np.stack(np.meshgrid(*[np.linspace(0.0, side, m)
+                                    for side, m in zip(box, size)],
+                                  indexing="ij"), axis=-1).reshape(-1, 2)
+
+    current = 1.0 / area[cKDTree(nodes).query(points)[1]].reshape(size)
+    target = np.sqrt(density(points)).reshape(size)
+    trapezoid = np.outer(*[np.r_[0.5, np.ones(m - 2), 0.5] for m in size])
+    current /= (trapezoid * current).sum()
+    target /= (trapezoid * target).sum()
+
+    # The 5-point Laplacian with Neumann conditions on the vertex grid is
+    # diagonal in the DCT-I basis.  Dropping the constant mode also absorbs
+    # what is left of the mismatch between the two totals.
+    eig = [-(2.0 - 2.0 * np.cos(np.pi * np.arange(m) / (m - 1))) / h ** 2
+           for m, h in zip(size, step)]
+    eig = eig[0][:, None] + eig[1][None, :]
+    eig[0, 0] = 1.0
+    coef = dctn(current - target, type=1) / eig
+    coef[0, 0] = 0.0
+    flux = np.gradient(idctn(coef, type=1), *step)
+    flux[0][[0, -1], :] = 0.0
+    flux[1][:, [0, -1]] = 0.0
+
+    def velocity(x, t):
+        # Bilinear interpolation, in grid index coordinates.
+        at = [map_coordinates(field, (x / step).T, order=1, mode="nearest")
+              for field in (*flux, current, target)]
+        return np.stack(at[:2], axis=1) / ((1.0 - t) * at[2]
+                                           + t * at[3])[:, None]
+
+    # Explicit midpoint rule.
+    dt = 1.0 / _FLOW_STEPS
+    x = nodes.copy()
+    for k in range(_FLOW_STEPS):
+        half = np.clip(x + 0.5 * dt * velocity(x, k * dt), 0.0, box)
+        x = np.clip(x + dt * velocity(half, (k + 0.5) * dt), 0.0, box)
+    return x
+
+
+def lloyd(nodes, box, density, max_iter=200, tol=1e-4, boundary_tol=1e-12):
+    """Relocate nodes to a density-weighted CVT of the box.
+
+    A global redistribution (`_redistribute`) is tried first and kept only
+    if it lowers the CVT energy, so a node set already close to the CVT is
+    left to the Lloyd steps alone.  Each Lloyd step moves the interior
+    nodes towards the centroids of their box-clipped Voronoi cells and the
+    edge nodes towards those centroids projected on their edge, over-
+    relaxed by a factor 1.6 unless that would leave the box; corners stay.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (N, 2)
+        Distinct ``(r, z)`` nodes in the box, including its four corners.
+    box : tuple of float
+        ``(Rb, Zb)``.
+    density : callable
+        Vectorized ``density(points (M, 2)) -> (M,)``, ``>= 1`` on the box;
+        only called with points in the box.
+    max_iter : int, optional
+        Cap on the number of Lloyd steps.
+    tol : float, optional
+        Stop once the relative movement (see Returns) is below ``tol``.
+        The default corresponds to an RMS step of 1% of the local spacing.
+    boundary_tol : float, optional
+        Input nodes within this distance of a box edge are edge nodes.
+
+    Returns
+    -------
+    nodes : ndarray, shape (N, 2)
+        Relocated nodes; edge nodes lie exactly on their edge, corners are
+        unchanged.  The result depends only on the input, bit for bit.
+    iterations : int
+        Number of Lloyd steps taken.  A step that would raise the CVT
+        energy is not taken and ends the iteration; with a smooth ``rho``
+        this does not happen, with a jump in ``rho`` the quadrature noise
+        causes it once the steps are down to about ``1e-3``.
+    movement : float
+        Relative movement of the last Lloyd step, ``mean_i |dz_i|^2 / A_i``
+        with ``A_i`` the Voronoi cell area of node ``i``; ``inf`` if no
+        step was taken.  It is about the relative decrease of the CVT
+        energy in that step.
+
+    Raises
+    ------
+    ValueError
+        If a node lies outside the box, a corner node is missing or two
+        nodes coincide.
+    """
+    rb, zb = box
+    z = np.array(nodes, dtype=float)
+    on = np.stack([np.abs(z[:, 0]) <= boundary_tol,
+                   np.abs(z[:, 0] - rb) <= boundary_tol,
+                   np.abs(z[:, 1]) <= boundary_tol,
+                   np.abs(z[:, 1] - zb) <= boundary_tol])
+    inside = ((z >= -boundary_tol) & (z <= np.add(box, boundary_tol))).all()
+    # The clipped cells tile the box only if its corners are nodes.
+    corners = all((on[i] & on[j]).any() for i in (0, 1) for j in (2, 3))
+    if not (inside and corners):
+        raise ValueError("nodes must lie in the box and include its corners")
+    z[on[0], 0], z[on[1], 0], z[on[2], 1], z[on[3], 1] = 0.0, rb, 0.0, zb
+    fixed = np.stack([on[0] | on[1], on[2] | on[3]], axis=1)
+
+    centroid, area, energy = _cells(z, box, density)
+    if (area <= 0).any():
+        raise ValueError("nodes must be distinct")
+    moved = np.where(fixed, z, _redistribute(z, box, density, area))
+    cells = _cells(moved, box, density)
+    if cells[2] < energy:
+        z, (centroid, area, energy) = moved, cells
+
+    movement = np.inf
+    it = 0
+    while it < max_iter and movement >= tol:
+        target = np.clip(np.where(fixed, z, centroid), 0.0, box)
+        new = z + _OMEGA * (target - z)
+        leaves = ((new < 0.0) | (new > box)).any(axis=1)
+        new[leaves] = target[leaves]
+        cells = _cells(new, box, density)
+        # With a smooth rho the energy falls at every step; a rise means
+        # the steps are down to quadrature noise (e.g. rho with a jump).
+        if cells[2] > energy:
+            break
+        movement = float(np.mean(((new - z) ** 2).sum(axis=1) / area))
+        z, (centroid, area, energy) = new, cells
+        it += 1
+    return z, it, movement
+
+
+def nodal_spacing(nodes):
+    """Mean distance from each node to its Delaunay neighbours.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (N, 2)
+
+    Returns
+    -------
+    h : ndarray, shape (N,)
+    """
+    indptr, neighbours = Delaunay(nodes).vertex_neighbor_vertices
+    count = np.diff(indptr)
+    owner = np.repeat(np.arange(len(nodes)), count)
+    dist = np.linalg.norm(nodes[neighbours] - nodes[owner], axis=1)
+    return np.bincount(owner, dist, minlength=len(nodes)) / count
+
+
+def spacing_peaks(h, bins=64):
+    """Smallest-spacing peak ``h_min`` of the distribution of ``h``.
+
+    The histogram of ``log h`` is taken, so that a refined and a coarse
+    population of nodes, each spread by a similar relative amount, are
+    resolved alike; it is smoothed with a Gaussian of one bin and padded
+    with empty bins so that a peak in an end bin counts.  Local maxima with
+    a prominence of at least 5% of the highest bin are peaks, which ignores
+    noise and small groups of outliers (e.g. around corners).
+
+    Parameters
+    ----------
+    h : array_like, shape (N,)
+        Positive nodal spacings, e.g. from `nodal_spacing`.
+    bins : int, optional
+        Number of histogram bins.
+
+    Returns
+    -------
+    float
+        Centre of the bin of the leftmost peak: the spacing of a uniform
+        grid, or of the refined nodes of a grid refined around a band.
+    """
+    x = np.log(np.asarray(h, dtype=float))
+    if np.ptp(x) < 1e-12:
+        return float(np.exp(x[0]))
+    counts, edges = np.histogram(x, bins=bins)
+    smooth = np.r_[0.0, gaussian_filter1d(counts.astype(float), 1.0,
+                                          mode="constant"), 0.0]
+    peaks = find_peaks(smooth, prominence=0.05 * smooth.max())[0] - 1
+    return float(np.exp(0.5 * (edges[peaks[0]] + edges[peaks[0] + 1])))
