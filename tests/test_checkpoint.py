@@ -400,6 +400,7 @@ try:
         checkpoint.read(path, comm=comm)
 except checkpoint.CheckpointError as exc:
     print(f"rank {rank} raised: {exc}", flush=True)
+    comm.Barrier()  # both ranks report before either exits (mpiexec kills the rest)
     raise
 print(f"rank {rank} done", flush=True)
 """
