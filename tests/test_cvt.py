@@ -10,7 +10,7 @@ BOX = (1.0, 2.0)
 
 
 def jittered_lattice(n_r, n_z, jitter=0.4, seed=0):
-    """Square lattice of BOX with interior nodes jittered by ``jitter`` cells."""
+    """Square lattice of BOX, interior nodes jittered by ``jitter`` cells."""
     axes = [np.linspace(0.0, side, m + 1) for side, m in zip(BOX, (n_r, n_z))]
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
     inner = ((nodes > 0) & (nodes < BOX)).all(axis=1)
@@ -70,13 +70,15 @@ def test_cells_tile_box_and_match_sampled_cells():
 
     # Reference: cell midpoints of an 800 x 1600 grid given to their
     # nearest node; its own error is ~2e-4 at a node spacing of ~0.13.
-    axes = [(np.arange(m) + 0.5) / m * side for side, m in zip(BOX, (800, 1600))]
+    axes = [(np.arange(m) + 0.5) / m * side
+            for side, m in zip(BOX, (800, 1600))]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
     owner = cKDTree(nodes).query(pts)[1]
     w = density(pts) * (BOX[0] * BOX[1] / len(pts))
     mass = np.bincount(owner, w)
-    ref = np.stack([np.bincount(owner, w * pts[:, k]) for k in range(2)], axis=1)
-    assert np.abs(centroid - ref / mass[:, None]).max() < 1e-3
+    ref = np.stack([np.bincount(owner, w * pts[:, k]) for k in range(2)],
+                   axis=1) / mass[:, None]
+    assert np.abs(centroid - ref).max() < 1e-3
     ref_energy = (w * ((pts - nodes[owner]) ** 2).sum(axis=1)).sum()
     assert energy == pytest.approx(ref_energy, rel=1e-3)
 
@@ -91,9 +93,12 @@ def test_uniform_density_gives_uniform_grid():
         h = cvt.nodal_spacing(x)[interior]
         return h.std() / h.mean()
 
-    # Measured: 0.110 for the jittered start, 0.043 after relocation.
+    # Measured: 0.110 for the jittered start, 0.045 after relocation.
     assert cv(nodes) > 0.1
     assert cv(moved) < 0.06
+    # One peak, although 5- and 7-neighbour nodes form sub-peaks ~7% apart.
+    h = cvt.nodal_spacing(moved)
+    assert cvt.spacing_peaks(h) == pytest.approx(np.median(h), rel=0.02)
 
 
 def test_count_ratio_follows_sqrt_density():
@@ -103,7 +108,9 @@ def test_count_ratio_follows_sqrt_density():
 
     z = np.linspace(0.0, BOX[1], 200001)
     g = np.sqrt(two_level(np.c_[np.zeros_like(z), z]))
-    expected = np.trapz(g[z >= 1], z[z >= 1]) / np.trapz(g[z <= 1], z[z <= 1])
+    upper = z >= 1
+    expected = (np.trapz(g[upper], z[upper])
+                / np.trapz(g[~upper], z[~upper]))
 
     moved, _, _ = cvt.lloyd(jittered_lattice(40, 80), BOX, two_level)
     # Edge nodes keep their per-edge counts, so count interior nodes.
@@ -111,7 +118,7 @@ def test_count_ratio_follows_sqrt_density():
     ratio = (interior[:, 1] > 1).sum() / (interior[:, 1] < 1).sum()
     # expected = 3.08 (2D CVT: node density ~ rho^(1/2)); measured 3.20
     # (+3.7%), the excess being a boundary layer that shrinks like
-    # N^(-1/2): +19% at 496 nodes, +11% at 861, +6% at 1891.
+    # N^(-1/2): +16% at 496 nodes, +11% at 861, +6% at 1891.
     assert ratio == pytest.approx(expected, rel=0.08)
 
 
@@ -120,10 +127,12 @@ def test_invariants(band_run):
     assert moved.shape == nodes.shape
     assert 0 < iterations < 200 and movement < 1e-4
     assert ((moved >= 0) & (moved <= BOX)).all()
-    for before, after in zip(on_edges(nodes), on_edges(moved)):
-        assert (after[before]).all()
-    corners = np.array([[0.0, 0.0], [BOX[0], 0.0], [0.0, BOX[1]], [BOX[0], BOX[1]]])
-    assert all((moved == c).all(axis=1).any() for c in corners)
+    edges = on_edges(nodes)
+    for before, after in zip(edges, on_edges(moved)):
+        assert after[before].all() and after.sum() == before.sum()
+    corner = (edges[0] | edges[1]) & (edges[2] | edges[3])
+    assert corner.sum() == 4
+    assert np.array_equal(moved[corner], nodes[corner])
     assert len(np.unique(moved, axis=0)) == len(moved)
 
 
@@ -131,6 +140,7 @@ def test_nodes_concentrate_in_band_and_along_axis(band_run):
     nodes, (moved, _, _) = band_run
     d = np.abs(np.hypot(moved[:, 0], moved[:, 1] - 1.0) - 0.5)
     d0 = np.abs(np.hypot(nodes[:, 0], nodes[:, 1] - 1.0) - 0.5)
+    # Measured: 682 nodes within 0.05 of the curve, from 142.
     assert (d < 0.05).sum() > 3 * (d0 < 0.05).sum()
     # Axis nodes slide along r = 0 towards the poles z = 0.5 and 1.5.
     axis = np.sort(moved[moved[:, 0] == 0, 1])
@@ -151,7 +161,7 @@ def test_converged_input_barely_moves(band_run):
     _, (moved, _, _) = band_run
     again, iterations, _ = cvt.lloyd(moved, BOX, band)
     h = cvt.nodal_spacing(moved)
-    # Measured: 1 step, at most 3.6% of the local spacing.
+    # Measured: 1 step, at most 5.6% of the local spacing.
     assert iterations <= 3
     assert (np.linalg.norm(again - moved, axis=1) / h).max() < 0.1
 
@@ -164,14 +174,34 @@ def test_edge_detection_uses_boundary_tol():
     assert (moved[on_axis, 0] == 0).all()
 
 
+def test_density_is_only_sampled_in_box():
+    calls = []
+
+    def checked(p):
+        calls.append(len(p))
+        assert ((p >= 0) & (p <= BOX)).all()
+        return band(p)
+
+    rng = np.random.default_rng(5)
+    nodes = jittered_lattice(6, 12)
+    inner = ((nodes > 0) & (nodes < BOX)).all(axis=1)
+    # Random interior nodes give obtuse triangles along the edges, whose
+    # pieces must be clipped.
+    nodes[inner] = rng.random((inner.sum(), 2)) * BOX
+    cvt.lloyd(nodes, BOX, checked)
+    assert len(calls) > 3
+
+
 def test_jump_in_density_stops_on_energy_rise():
     # The midpoint rule cannot place a jump: steps end in quadrature noise
-    # and the iteration stops instead of running to max_iter.
+    # and the iteration stops (measured: after 12 steps) although ``tol``
+    # is out of reach.
     def jump(p):
         return np.where(p[:, 1] > 1.0, 10.0, 1.0)
 
-    _, iterations, movement = cvt.lloyd(jittered_lattice(20, 40), BOX, jump)
-    assert iterations < 100 and movement > 1e-4
+    _, iterations, _ = cvt.lloyd(jittered_lattice(20, 40), BOX, jump,
+                                 max_iter=100, tol=1e-9)
+    assert iterations < 100
 
 
 @pytest.mark.parametrize("change", ["corner", "outside", "duplicate"])
@@ -199,8 +229,8 @@ def test_nodal_spacing_square_lattice():
     # Each square is split by one diagonal, so a node has its 4 lattice
     # neighbours at a and (degree - 4) diagonal ones at a sqrt(2).
     a = 0.05
-    nodes = a * np.stack(np.meshgrid(np.arange(15), np.arange(21), indexing="ij"),
-                         axis=-1).reshape(-1, 2).astype(float)
+    i, j = np.meshgrid(np.arange(15), np.arange(21), indexing="ij")
+    nodes = a * np.stack([i, j], axis=-1).reshape(-1, 2).astype(float)
     h = cvt.nodal_spacing(nodes)
     degree = np.diff(Delaunay(nodes).vertex_neighbor_vertices[0])
     inner = (nodes > 0).all(axis=1) & (nodes < nodes.max(axis=0)).all(axis=1)
@@ -227,6 +257,7 @@ def test_spacing_peaks_two_populations():
     nodes = np.concatenate([fine, coarse])
     h = cvt.nodal_spacing(nodes)
     assert len(fine) < len(coarse)
+    # Measured: 0.01009.
     assert cvt.spacing_peaks(h) == pytest.approx(0.01, rel=0.05)
 
 
@@ -235,5 +266,6 @@ def test_spacing_peaks_of_refined_cvt(band_run):
     h = cvt.nodal_spacing(moved)
     in_band = np.abs(np.hypot(moved[:, 0], moved[:, 1] - 1.0) - 0.5) < 0.02
     h_min = cvt.spacing_peaks(h)
+    # Measured: 0.0145 against 0.0144 in the band and 0.0417 overall.
     assert h_min < 0.5 * np.median(h)
-    assert h_min == pytest.approx(np.median(h[in_band]), rel=0.15)
+    assert h_min == pytest.approx(np.median(h[in_band]), rel=0.1)
