@@ -5,6 +5,7 @@ import sys
 import time
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import checkpoint, nodes as nodesets, options
@@ -23,11 +24,6 @@ RESOLUTION = 1.5
 def resolved_eps(grid):
     """Smallest eps the grid resolves."""
     return RESOLUTION * spacing_peak(grid.h)
-
-
-def max_op():
-    from mpi4py import MPI
-    return MPI.MAX
 
 
 def start_nodes(p, comm):
@@ -114,7 +110,7 @@ def run(comm):
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
                  peak_rss_mb=comm.tompi4py().allreduce(
-                     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=max_op()))
+                     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX))
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)

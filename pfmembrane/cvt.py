@@ -49,8 +49,7 @@ with ``phi = tanh(d / (sqrt(2) eps))``, ``eps = 0.0125`` (a band of width
 
 import numpy as np
 from scipy.fft import dctn, idctn
-from scipy.ndimage import gaussian_filter1d, map_coordinates
-from scipy.signal import find_peaks
+from scipy.ndimage import map_coordinates
 from scipy.spatial import Delaunay, cKDTree
 
 # Redistribution: grid vertices per node and flow time steps.  2 vertices
@@ -357,61 +356,3 @@ def lloyd(nodes, box, density, max_iter=200, tol=1e-4, boundary_tol=1e-12):
         z, (centroid, area, energy) = new, cells
         it += 1
     return z, it, movement
-
-
-def nodal_spacing(nodes):
-    """Mean distance from each node to its Delaunay neighbours.
-
-    Parameters
-    ----------
-    nodes : ndarray, shape (N, 2)
-
-    Returns
-    -------
-    h : ndarray, shape (N,)
-    """
-    indptr, neighbours = Delaunay(nodes).vertex_neighbor_vertices
-    count = np.diff(indptr)
-    owner = np.repeat(np.arange(len(nodes)), count)
-    dist = np.linalg.norm(nodes[neighbours] - nodes[owner], axis=1)
-    return np.bincount(owner, dist, minlength=len(nodes)) / count
-
-
-def spacing_peaks(h, bins=128):
-    """Smallest-spacing peak ``h_min`` of the distribution of ``h``.
-
-    The histogram of ``log h`` is smoothed with a Gaussian of width 0.05,
-    i.e. about 5% in spacing, and padded with empty bins so that a peak in
-    an end bin counts.  Working in ``log h`` resolves a refined and a
-    coarse population alike, as each is spread by a similar relative
-    amount.  The width merges sub-peaks a few per cent apart, such as the
-    nodes with 5 or 7 neighbours in a uniform CVT, which sit about 7% below
-    and 5% above the 6-neighbour peak.  Local maxima with a prominence of
-    at least 1% of the highest one are peaks.  On the CVTs of the band
-    densities of this module the result is 2-4% above the median spacing
-    of the nodes within 0.01 of the curve.  The weakest band there, 10x
-    with 2.5% of the nodes, stands out by 1.0-1.5%; spurious maxima stayed
-    below 0.6%.
-
-    Parameters
-    ----------
-    h : array_like, shape (N,)
-        Positive nodal spacings, e.g. from `nodal_spacing`.
-    bins : int, optional
-        Number of histogram bins between the smallest and largest ``h``.
-
-    Returns
-    -------
-    float
-        Centre of the bin of the leftmost peak: the spacing of a uniform
-        grid, or that of the refined nodes of a grid refined around a band.
-    """
-    x = np.log(np.asarray(h, dtype=float))
-    if np.ptp(x) < 1e-12:
-        return float(np.exp(x[0]))
-    counts, edges = np.histogram(x, bins=bins)
-    smooth = np.r_[0.0, gaussian_filter1d(counts.astype(float),
-                                          0.05 / (edges[1] - edges[0]),
-                                          mode="constant"), 0.0]
-    first = find_peaks(smooth, prominence=0.01 * smooth.max())[0][0] - 1
-    return float(np.exp(0.5 * (edges[first] + edges[first + 1])))

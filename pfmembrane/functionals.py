@@ -47,14 +47,18 @@ class Functionals:
         d2W = -6.0 * u / eps - 2.0 * s                         # d2W/du2
         return W, dW, d2W
 
+    def _integrals(self, u, ur, uz, W):
+        """Local parts of (E, A, V - |Omega|/2, M) from the fields."""
+        w, eps = self.ops.w, self.eps
+        return np.array([F_E * self.k / (2 * eps) * np.dot(w, W * W),
+                         F_A * np.dot(w, 0.5 * eps * (ur * ur + uz * uz)
+                                      + (u * u - 1.0) ** 2 / (4 * eps)),
+                         0.5 * np.dot(w, u), np.dot(w, u * (self.ops.z - self.zc))])
+
     def values(self, phi):
         """Local parts of (E, A, V - |Omega|/2, M)."""
         u, ur, uz, lap = self.fields(phi)
-        w, eps = self.ops.w, self.eps
-        W = self._W(u, lap)[0]
-        E = F_E * self.k / (2 * eps) * np.dot(w, W * W)
-        A = F_A * np.dot(w, 0.5 * eps * (ur * ur + uz * uz) + (u * u - 1.0) ** 2 / (4 * eps))
-        return np.array([E, A, 0.5 * np.dot(w, u), np.dot(w, u * (self.ops.z - self.zc))])
+        return self._integrals(u, ur, uz, self._W(u, lap)[0])
 
     def gradients(self, phi):
         """Local values (E, A, V - |Omega|/2, M) and gradients of E and A."""
@@ -66,11 +70,7 @@ class Functionals:
         gE = 2 * cE * (eps * (o.BL.T @ (w * W)) + o.B0.T @ (w * W * dW))
         gA = F_A * (eps * (o.Br.T @ (w * ur) + o.Bz.T @ (w * uz))
                     + o.B0.T @ (w * (u ** 3 - u) / eps))
-        vals = np.array([cE * np.dot(w, W * W),
-                         F_A * np.dot(w, 0.5 * eps * (ur * ur + uz * uz)
-                                      + (u * u - 1.0) ** 2 / (4 * eps)),
-                         0.5 * np.dot(w, u), np.dot(w, u * (o.z - self.zc))])
-        return vals, gE, gA
+        return self._integrals(u, ur, uz, W), gE, gA
 
     def hessian(self, phi, sigma):
         """Local Hess E - sigma Hess A (V and M are linear), as CSR."""

@@ -6,8 +6,6 @@ solver options keep PETSc's names under the prefixes `stage1_` and `stage2_`.
 from dataclasses import dataclass, fields
 import math
 
-import numpy as np
-
 BRANCHES = ('oblate', 'prolate')
 STAGE1 = ('newton', 'tao')
 QUADRATURE = (1, 2, 4, 5)
@@ -109,7 +107,10 @@ def _get(opts, name, kind, default):
                 raise ValueError
             return value
         if kind is int:
-            return int(float(text)) if float(text).is_integer() else int(text)
+            value = float(text)  # accepts 6124 and 6.124e3, refuses 61.5
+            if not value.is_integer():
+                raise ValueError
+            return int(value)
         return kind(text)
     except ValueError:
         raise UsageError(f"-{key}: cannot read '{text}' as {kind.__name__}") from None

@@ -24,8 +24,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from pfmembrane import checkpoint
+from pfmembrane.nodes import nodal_spacing
 
-__all__ = ["FIGURES", "triangulation", "zero_contour", "nodal_spacing",
+__all__ = ["FIGURES", "triangulation", "zero_contour",
            "plot_field", "plot_section", "plot_3d", "plot_spacing", "main"]
 
 FIGURES = ("field", "nodes", "section", "3d", "spacing")
@@ -66,28 +67,6 @@ def zero_contour(ckpt):
     axes = Figure().add_subplot()
     contours = axes.tricontour(triangulation(ckpt), ckpt.phi, levels=[0.0])
     return [line for line in contours.allsegs[0] if len(line) > 1]
-
-
-def nodal_spacing(nodes):
-    """Nodal spacing h_a: mean distance of each node to its Delaunay
-    neighbours.
-
-    Not collective.
-
-    Parameters
-    ----------
-    nodes : ndarray, shape (N, 2)
-
-    Returns
-    -------
-    ndarray, shape (N,)
-    """
-    edges = mtri.Triangulation(nodes[:, 0], nodes[:, 1]).edges
-    lengths = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
-    ends = edges.ravel()
-    total = np.bincount(ends, weights=np.repeat(lengths, 2),
-                        minlength=len(nodes))
-    return total / np.bincount(ends, minlength=len(nodes))
 
 
 def plot_field(ckpt, ax=None, nodes=True):

@@ -10,6 +10,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import NCON
+from .options import stage1_penalty
 
 
 class SolveError(Exception):
@@ -58,6 +59,7 @@ class Solver:
         return np.linalg.solve(G, rhs)
 
     def max_phi(self, x):
+        """max |phi| over the nodes; Dirichlet nodes hold -1, hence the floor."""
         return max(x.norm(PETSc.NormType.NORM_INFINITY), 1.0)
 
     def row(self, stage, it, vals, res, gnorm):
@@ -70,7 +72,6 @@ class Solver:
     # -- stage 1 ---------------------------------------------------------------
     def stage1(self, x):
         """Augmented Lagrangian to the coarse tolerance -pf_stage1_rtol."""
-        from .options import stage1_penalty
         t0 = time.perf_counter()
         mu = stage1_penalty(self.p)
         vals, res = self.evaluate(x)
@@ -78,12 +79,13 @@ class Solver:
         inner = self._newton if self.p.stage1 == 'newton' else self._tao
         iters = 0
         gtol = None
+        grad_L = x.duplicate()
         for outer in range(1, self.p.stage1_max_it + 1):
             iters += inner(x, mu, gtol)
             vals, res = self.evaluate(x)
             rel = np.abs(res) / self.scale
             self.nu = self.nu - res / mu
-            g = self.combine(x.duplicate(), self.nu).norm()
+            g = self.combine(grad_L, self.nu).norm()
             gtol = 0.1 * g if gtol is None else min(gtol, 0.1 * g)
             self.row('AL', outer, vals, res, g)
             if rel.max() < self.p.stage1_rtol:
@@ -104,7 +106,7 @@ class Solver:
         [[H, -C^T], [-C, -mu I]] whose inertia has exactly NCON negative
         eigenvalues iff Hess L_A = H + C^T C / mu is positive definite."""
         P = self.P
-        ksp = self._ksp('stage1_', cholesky=True)
+        ksp = self._stage1_ksp()
         K = P.bordered_matrix()
         rhs, sol = K.createVecs()
         g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
@@ -208,7 +210,7 @@ class Solver:
 
         def jacobian(snes, XX, J, Pm):
             nu = unpack(XX)
-            self.evaluate(xx)
+            self.evaluate(xx)  # grad A at this X: the last residual may have been elsewhere
             P.assemble_bordered(xx, nu[0], self.C, 0.0)
 
         snes = PETSc.SNES().create(P.comm)
@@ -245,10 +247,10 @@ class Solver:
         _set_default(prefix, 'mat_mumps_icntl_13', '1')  # inertia in parallel
         _set_default(prefix, 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
 
-    def _ksp(self, prefix, cholesky):
-        ksp = getattr(self, '_stage1_ksp', None)
-        if ksp is None:
-            ksp = self._stage1_ksp = PETSc.KSP().create(self.P.comm)
-            self._configure_direct(ksp, prefix, cholesky)
-            ksp.setFromOptions()
-        return ksp
+    def _stage1_ksp(self):
+        """One LDL^T (MUMPS Cholesky) solver reused by every stage-1 Newton step."""
+        if not hasattr(self, '_ksp1'):
+            self._ksp1 = PETSc.KSP().create(self.P.comm)
+            self._configure_direct(self._ksp1, 'stage1_', cholesky=True)
+            self._ksp1.setFromOptions()
+        return self._ksp1

@@ -47,8 +47,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     rows = ['| branch | nodes | eps | E (pfmembrane) | E paper (same grid) | diff | E paper (296,344) '
-            '| diff | nu_A | nu_V | max phi | its (1+2) | wall s | peak MB/rank |',
-            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            '| diff | nu_A | nu_V | max phi | its (1+2) | converged | wall s | peak MB/rank |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     for branch in args.branches.split(','):
         for n in (int(v) for v in args.nodes.split(',')):
             for eps, ref in PAPER[(branch, n)].items():
@@ -58,7 +58,7 @@ def main(argv=None):
                     f"| {branch} | {int(a['n_nodes'])} | {eps:g} | {a['energy']:.5f} | {ref:.5f} | "
                     f"{100 * (a['energy'] / ref - 1):+.2f}% | {fine:.5f} | {100 * (a['energy'] / fine - 1):+.2f}% | "
                     f"{a['nu_area']:.4f} | {a['nu_volume']:.3f} | {a.get('max_phi', float('nan')):.4f} | "
-                    f"{int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | "
+                    f"{int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {int(a['converged'])} | "
                     f"{a['wall_time']:.1f} | {a['peak_rss_mb']:.0f} |")
                 print(rows[-1], flush=True)
     table = os.path.join(args.out, 'uniform.md')

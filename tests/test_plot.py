@@ -162,18 +162,3 @@ def test_field_mirrors_and_marks_nodes(pair):
     bare = plot.plot_field(thin, nodes=False)
     assert bare.get_lines() == []
     plt.close(bare.figure)
-
-
-def test_nodal_spacing_of_a_triangular_lattice():
-    h = 0.1
-    i, j = np.meshgrid(np.arange(12), np.arange(12))
-    nodes = np.column_stack([(i + 0.5 * (j % 2)).ravel() * h,
-                             j.ravel() * h * np.sqrt(3.0) / 2.0])
-
-    spacing = plot.nodal_spacing(nodes)
-
-    # Every interior node has six neighbours at distance h; hull edges may
-    # be longer, so nodes on the boundary are left out.
-    interior = (i > 1) & (i < 10) & (j > 1) & (j < 10)
-    np.testing.assert_allclose(spacing[interior.ravel()], h, rtol=1e-12)
-    assert np.all(spacing >= h * (1.0 - 1e-12))
