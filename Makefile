@@ -12,7 +12,7 @@ MPIEXEC ?= mpiexec
 DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
-.PHONY: help install run check test test-1 test-2 tables adapt bench clean
+.PHONY: help install run check test test-1 test-2 tables adapt bench bench-basis clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -20,7 +20,8 @@ help:
 	@echo "make check    a 30 s smoke run on 2 ranks"
 	@echo "make test     the test suite: serial tests, then the MPI tests on 2 ranks"
 	@echo "make tables   the paper's uniform-grid tables (1, 2) under runs/tables/"
-	@echo "make bench    speed/accuracy benchmark under runs/bench/"
+	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
+	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
@@ -55,7 +56,10 @@ tables: install
 	$(PY) -m pfmembrane.tables --np $(NP) --out runs/tables
 
 bench: install
-	$(PY) -m pfmembrane.bench --out runs/bench
+	$(PY) -m pfmembrane.bench solve --out runs/bench
+
+bench-basis: install
+	$(PY) -m pfmembrane.bench basis --out runs/bench
 
 clean:
 	rm -rf $(VENV) runs/check.h5

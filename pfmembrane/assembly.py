@@ -25,7 +25,7 @@ class Problem:
         self.comm = grid.comm
         self.mpi = self.comm.tompi4py()
         self.eps = eps
-        self.forms = Functionals(grid.ops, eps, k, c0, zc)
+        self.forms = Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
         self.targets = np.asarray(targets, dtype=float)
         self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
         self._ghosted = self.layout.create_ghosted()

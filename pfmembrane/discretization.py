@@ -9,6 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import maxent, nodes as nodesets, quadrature
+from .gram import Gram
 from .nodes import nodal_spacing
 from .partition import Layout
 
@@ -32,6 +33,19 @@ class Operators(NamedTuple):
     z: np.ndarray
 
 
+def folded_basis(points, nodes, beta, cutoff, derivatives):
+    """Max-ent basis at `points` whose columns are the nodes themselves.
+
+    Not collective. Axis mirrors (see `nodes.with_axis_mirrors`) enter the
+    sums and each appears under its original's index, so a row may list a
+    node twice; sparse products and `maxent.interpolate` add the two.
+    """
+    radius = maxent.support_radius(beta, cutoff)
+    aug, beta_aug, owner = nodesets.with_axis_mirrors(nodes, beta, radius)
+    basis = maxent.local_maxent(points, aug, beta_aug, cutoff, derivatives=derivatives)
+    return basis._replace(indices=owner[basis.indices])
+
+
 class Grid:
     """A node set with its max-ent basis, partition and local operators.
 
@@ -49,15 +63,15 @@ class Grid:
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)
         points, weights = quadrature.rule(nodes, self.layout.my_triangles, degree)
+        self.per_cell = len(points) // max(len(self.layout.my_triangles), 1)
         self.nquad = comm.tompi4py().allreduce(len(points))
         self.ops = self._operators(points, weights)
+        self._gram = None
 
     def _operators(self, points, weights):
-        radius = maxent.support_radius(self.beta, self.cutoff)
-        aug, beta_aug, owner = nodesets.with_axis_mirrors(self.nodes, self.beta, radius)
-        basis = maxent.local_maxent(points, aug, beta_aug, self.cutoff, derivatives=2)
+        basis = folded_basis(points, self.nodes, self.beta, self.cutoff, derivatives=2)
         rows = np.repeat(np.arange(len(points)), np.diff(basis.indptr))
-        node = owner[basis.indices]
+        node = basis.indices
         r = points[:, 0]
         columns = {'B0': basis.p, 'Br': basis.dp[:, 0], 'Bz': basis.dp[:, 1],
                    'BL': basis.ddp[:, 0] + basis.dp[:, 0] / r[rows] + basis.ddp[:, 2]}
@@ -81,3 +95,13 @@ class Grid:
         P = (S.T @ S).tocsr()
         P.sort_indices()
         return P
+
+    @property
+    def gram(self):
+        """Batched Hessian products on this grid; built on first use, so a
+        gradient-only solve never pays for them."""
+        if self._gram is None:
+            o = self.ops
+            self._gram = Gram({'B0': o.B0, 'BL': o.BL, 'Br': o.Br, 'Bz': o.Bz},
+                              self.per_cell, self.hessian_pattern())
+        return self._gram

@@ -5,7 +5,6 @@ Hessians (local CSR) from the operators of one grid. Sums over this rank's
 quadrature points only; the assembly layer adds the ranks together.
 """
 import numpy as np
-import scipy.sparse as sp
 
 F_E = 3.0 / (8.0 * np.sqrt(2.0))
 F_A = 3.0 / (2.0 * np.sqrt(2.0))
@@ -16,23 +15,30 @@ class Functionals:
     """E, A, V, M of one scene on one grid (rank-local parts).
 
     Not collective. The gradients of V and M and the stiffness part of the
-    Hessian of A do not depend on phi and are computed once.
+    Hessian of A do not depend on phi and are computed once. `gram` returns
+    the `gram.Gram` of the same operators; only `hessian` calls it.
     """
 
-    def __init__(self, ops, eps, k=1.0, c0=0.0, zc=1.0):
+    def __init__(self, ops, eps, k=1.0, c0=0.0, zc=1.0, gram=None):
         self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
+        self._gram = gram
         w = ops.w
         self.grad_V = 0.5 * (ops.B0.T @ w)
         self.grad_M = ops.B0.T @ (w * (ops.z - zc))
         self._stiffness = None
 
     @property
+    def gram(self):
+        return self._gram()
+
+    @property
     def stiffness(self):
-        """eps f_A int grad p_a . grad p_b (the constant part of Hess A), built on demand."""
+        """eps f_A int grad p_a . grad p_b (the constant part of Hess A), as
+        upper-pattern data of `gram`, built on demand."""
         if self._stiffness is None:
-            o = self.ops
-            self._stiffness = (self.eps * F_A) * (o.Br.T @ sp.diags(o.w) @ o.Br
-                                                  + o.Bz.T @ sp.diags(o.w) @ o.Bz).tocsr()
+            g, s = self.gram, self.eps * F_A * self.ops.w
+            self._stiffness = g.upper_data([({'Br': 1.0}, s), ({'Bz': 1.0}, s)],
+                                           blocks={'Br': g.block('Br'), 'Bz': g.block('Bz')})
         return self._stiffness
 
     def fields(self, phi):
@@ -79,9 +85,10 @@ class Functionals:
         w = o.w
         W, dW, d2W = self._W(u, lap)
         cE = F_E * self.k / (2 * eps)
-        D = eps * o.BL + sp.diags(dW) @ o.B0
+        # Hess E = 2 cE D^T w D + B0^T (2 cE w W W'') B0 with D = eps BL + W' B0;
+        # Hess A = stiffness + B0^T (f_A w (3u^2 - 1) / eps) B0.
         c0 = 2 * cE * w * W * d2W - sigma * F_A * w * (3 * u * u - 1.0) / eps
-        H = 2 * cE * (D.T @ sp.diags(w) @ D) + o.B0.T @ sp.diags(c0) @ o.B0
+        H = self.gram.upper_data([({'BL': eps, 'B0': dW}, 2 * cE * w), ({'B0': 1.0}, c0)])
         if sigma != 0.0:
             H = H - sigma * self.stiffness
-        return H.tocsr()
+        return self.gram.full(H)

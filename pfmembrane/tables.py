@@ -12,17 +12,8 @@ import sys
 
 import h5py
 
-# Paper, Tables 1 and 2: energies per (branch, nodes, eps); 296344 is the finest grid.
-PAPER = {
-    ('oblate', 6124): {0.05: 9.71279, 0.04: 9.59056},
-    ('oblate', 12271): {0.05: 9.72137, 0.04: 9.59446, 0.03: 9.43775},
-    ('oblate', 24597): {0.05: 9.72671, 0.04: 9.59553, 0.03: 9.43483},
-    ('oblate', 296344): {0.05: 9.73989, 0.04: 9.60053, 0.03: 9.43437},
-    ('prolate', 6124): {0.05: 9.29504, 0.04: 9.15560},
-    ('prolate', 12271): {0.05: 9.30167, 0.04: 9.15918, 0.03: 9.00361},
-    ('prolate', 24597): {0.05: 9.30627, 0.04: 9.16106, 0.03: 9.00310},
-    ('prolate', 296344): {0.05: 9.31650, 0.04: 9.16512, 0.03: 9.00251},
-}
+from .paper import FINEST, UNIFORM
+
 SCENE = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 
 
@@ -51,9 +42,9 @@ def main(argv=None):
             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     for branch in args.branches.split(','):
         for n in (int(v) for v in args.nodes.split(',')):
-            for eps, ref in PAPER[(branch, n)].items():
+            for eps, ref in UNIFORM[(branch, n)].items():
                 a = run(branch, n, eps, args.np, args.out)
-                fine = PAPER[(branch, 296344)][eps]
+                fine = UNIFORM[(branch, FINEST)][eps]
                 rows.append(
                     f"| {branch} | {int(a['n_nodes'])} | {eps:g} | {a['energy']:.5f} | {ref:.5f} | "
                     f"{100 * (a['energy'] / ref - 1):+.2f}% | {fine:.5f} | {100 * (a['energy'] / fine - 1):+.2f}% | "

@@ -1,0 +1,134 @@
+"""Run a progressive adaptive sequence (paper Table B.6) and tabulate it
+(Tables 3, 4 and 5).
+
+    python -m pfmembrane.sequence options/adapt/discocyte --scene options/discocyte.opts
+
+Each step is an options file of the directory, run in name order as
+`mpiexec -n NP python -m pfmembrane -options_file SCENE -options_file STEP`;
+a step restarts from the checkpoint of an earlier one, with `-pf_adapt f`
+where a new grid is made. Steps whose converged checkpoint exists are not
+run again (unless --force). The sequence stops at the first failed step.
+"""
+import argparse
+import glob
+import os
+import re
+import subprocess
+import sys
+import time
+
+import h5py
+
+from .paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
+
+
+def output_of(step):
+    """The -pf_output path an options file names."""
+    with open(step) as f:
+        found = re.findall(r'^\s*-pf_output\s+(\S+)', f.read(), flags=re.M)
+    if not found:
+        sys.exit(f"{step}: names no -pf_output")
+    return found[-1]
+
+
+def converged(path):
+    try:
+        with h5py.File(path, 'r') as f:
+            return bool(f.attrs['converged'])
+    except (OSError, KeyError):
+        return False
+
+
+def run(steps, scene, nprocs, force=False):
+    """Run the steps in order; returns {step: wall seconds or None if reused}."""
+    walls = {}
+    for step in steps:
+        out = output_of(step)
+        if not force and converged(out):
+            walls[step] = None
+            continue
+        cmd = ['mpiexec', '-n', str(nprocs), sys.executable, '-m', 'pfmembrane',
+               '-options_file', scene, '-options_file', step]
+        print(' '.join(cmd), flush=True)
+        t0 = time.perf_counter()
+        status = subprocess.run(cmd).returncode
+        walls[step] = time.perf_counter() - t0
+        if status != 0:
+            print(f"{step}: exit status {status}; the sequence stops here", flush=True)
+            break
+    return walls
+
+
+def table(steps, walls):
+    """Markdown rows: one per step, with the paper's numbers beside ours."""
+    rows = ['| step | grid | nodes | eps | eps_min | E | paper | diff | E finest uniform (paper) | diff '
+            '| error vs sharp | paper (Table 4) | max phi | its (1+2) | converged | run s | wall s |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+    total = 0.0
+    for step in steps:
+        path = output_of(step)
+        if not os.path.exists(path):
+            continue
+        with h5py.File(path, 'r') as f:
+            a = dict(f.attrs)
+        branch, eps, energy = str(a['branch']), round(float(a['eps']), 6), float(a['energy'])
+        grid = os.path.basename(path).split('_eps')[0]
+        paper = ADAPTED.get((branch, grid), UNIFORM.get((branch, int(a['n_nodes'])), {})).get(eps)
+        fine = UNIFORM[(branch, FINEST)].get(eps)
+        sharp = 100 * (energy / SHARP[branch] - 1)
+        table4 = SHARP_ERROR.get(_nominal(int(a['n_nodes'])), {}).get(eps) if branch == 'oblate' else None
+        wall = walls.get(step)
+        total += float(a['wall_time'])
+        rows.append(
+            f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {eps:g} | {a['eps_min']:.4f} "
+            f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
+            f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
+            f"| {int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {int(a['converged'])} "
+            f"| {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
+    return rows, total
+
+
+def _nominal(n):
+    """The paper's node count of a uniform grid of about n nodes."""
+    return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))
+
+
+def _num(v):
+    return '' if v is None else f'{v:.5f}'
+
+
+def _pct(value, ref):
+    return '' if ref is None else f'{100 * (value / ref - 1):+.3f}%'
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('directory', help='directory of step options files')
+    ap.add_argument('--scene', required=True, help='scene options file (options/*.opts)')
+    ap.add_argument('--np', type=int, default=2)
+    ap.add_argument('--force', action='store_true', help='rerun steps with a converged checkpoint')
+    ap.add_argument('--out', default=None, help='table path (default runs/adapt/<name>.md)')
+    args = ap.parse_args(argv)
+    steps = sorted(glob.glob(os.path.join(args.directory, '*.opts')))
+    if not steps:
+        sys.exit(f"{args.directory}: no options files")
+    t0 = time.perf_counter()
+    walls = run(steps, args.scene, args.np, args.force)
+    elapsed = time.perf_counter() - t0
+    rows, total = table(steps, walls)
+    name = os.path.basename(os.path.normpath(args.directory))
+    out = args.out or os.path.join('runs', 'adapt', name + '.md')
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with open(out, 'w') as f:
+        f.write(f"Adaptive sequence `{args.directory}` (scene `{args.scene}`), {args.np} MPI ranks, "
+                f"{os.cpu_count()} cores. Regenerate: `python -m pfmembrane.sequence {args.directory} "
+                f"--scene {args.scene} --force`.\n\n")
+        f.write('\n'.join(rows) + '\n\n')
+        f.write(f"Sum of the runs' wall times: {total:.1f} s (this invocation: {elapsed:.1f} s).\n")
+    print('\n'.join(rows))
+    print(f"sum of run wall times {total:.1f} s -> {out}")
+    return 0 if all(converged(output_of(s)) for s in steps) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

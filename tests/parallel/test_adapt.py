@@ -1,0 +1,64 @@
+"""CVT adaptivity: node count, edges, grading toward the interface, transfer
+of phi, and the same grid on every rank count.
+
+Collective: one rank under pytest, two under `mpiexec -n 2`.
+"""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from pfmembrane import adapt, maxent, nodes
+from pfmembrane.discretization import folded_basis
+
+BOX, EPS = (1.0, 1.4), 0.05
+
+
+def _phi(xy):
+    d = np.hypot(xy[:, 0], xy[:, 1] - 0.7) - 0.45
+    phi = -np.tanh(d / (np.sqrt(2) * EPS))
+    phi[nodes.dirichlet_mask(xy, BOX)] = -1.0
+    return phi
+
+
+@pytest.fixture(scope='module')
+def relocated():
+    xy = nodes.uniform(BOX, 900)
+    phi = _phi(xy)
+    new, new_phi, info = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, 0.8, 1e-6, 100.0)
+    return xy, phi, new, new_phi, info
+
+
+def test_nodes_are_kept_and_edges_stay_edges(relocated):
+    xy, _, new, _, _ = relocated
+    assert new.shape == xy.shape
+    assert np.array_equal(nodes.edge_labels(new, BOX) != 0, nodes.edge_labels(xy, BOX) != 0)
+    assert ((new >= 0) & (new <= BOX)).all()
+
+
+def test_nodes_gather_at_the_interface(relocated):
+    _, _, new, _, info = relocated
+    h = nodes.nodal_spacing(new)
+    d = np.abs(np.hypot(new[:, 0], new[:, 1] - 0.7) - 0.45)
+    assert np.median(h[d < EPS]) < 0.5 * np.median(h[d > 4 * EPS])
+    assert info['h_min'][1] < 0.6 * info['h_min'][0]
+
+
+def test_phi_is_the_old_interpolant_at_the_new_nodes(relocated):
+    xy, phi, new, new_phi, _ = relocated
+    inner = ~nodes.dirichlet_mask(new, BOX)
+    basis = folded_basis(new[inner], xy, 0.8 / nodes.nodal_spacing(xy) ** 2, 1e-6, 0)
+    assert np.allclose(new_phi[inner], maxent.interpolate(basis, phi), atol=1e-14)
+    assert (new_phi[~inner] == -1.0).all()
+    # fields linear in z (and even in r, as the axis mirrors make every field) transfer exactly
+    assert np.allclose(maxent.interpolate(basis, 0.1 - 0.2 * xy[:, 1]), 0.1 - 0.2 * new[inner, 1],
+                       atol=1e-10)
+
+
+def test_same_grid_on_every_rank_count(relocated):
+    xy, phi, new, _, _ = relocated
+    comm = MPI.COMM_WORLD
+    if comm.Get_size() == 1:
+        pytest.skip('compares against a one-rank relocation: run under mpiexec -n 2')
+    one = adapt.relocate(MPI.COMM_SELF, xy, phi, BOX, 0.8, 1e-6, 100.0)[0]
+    assert np.array_equal(one, new)
+    assert all(np.array_equal(other, new) for other in comm.allgather(new))

@@ -1,0 +1,122 @@
+"""Benchmarks: the basis measurement on a real grid, the Pareto front, the recommendation."""
+import itertools
+import json
+import math
+
+import numpy as np
+
+from pfmembrane import bench
+
+MPI_ENV = {'OMPI_ALLOW_RUN_AS_ROOT': '1', 'OMPI_ALLOW_RUN_AS_ROOT_CONFIRM': '1',
+           'OMPI_MCA_rmaps_base_oversubscribe': '1',
+           'OMPI_MCA_btl_vader_single_copy_mechanism': 'none'}
+
+
+def test_basis_reports_a_plausible_grid(tmp_path, monkeypatch):
+    for key, value in MPI_ENV.items():
+        monkeypatch.setenv(key, value)
+    bench.main(['basis', '--nodes', '600', '--np', '1', '--out', str(tmp_path)])
+    lines = (tmp_path / 'basis.md').read_text().splitlines()
+    assert any(line.startswith('Machine: ') and 'cores' in line for line in lines)
+    header = next(k for k, line in enumerate(lines) if line.startswith('| requested'))
+    columns = [c.strip() for c in lines[header].strip('|').split('|')]
+    for name in ('nodes', 'free', 'quadrature points', 'mean support', 'ranks', 'nodes s',
+                 'spacing s', 'triangulation + partition s', 'max-ent basis s', 'peak MB/rank'):
+        assert name in columns
+    row = dict(zip(columns, (c.strip() for c in lines[header + 2].strip('|').split('|'))))
+    assert abs(int(row['nodes']) - 600) <= 10 and row['ranks'] == '1'
+
+    r, = json.loads((tmp_path / 'basis.json').read_text())['results']
+    assert r['free_nodes'] < r['nodes']
+    # Two triangles per node, six points per triangle, fewer on the boundary.
+    assert 10 <= r['quadrature_points'] / r['nodes'] <= 12.5
+    # gamma 0.8, cut-off 1e-6: the support radius is 4.2 h, some 60 nodes.
+    assert 20 <= r['mean_support'] <= 120
+    s = r['seconds']
+    assert all(s[part] > 0 for part in ('nodes', 'spacing', 'partition', 'basis'))
+    assert s['grid'] >= s['spacing'] + s['partition'] + s['basis']
+    assert 50 < r['peak_rss_mb'] < 4000
+
+
+def _dominated(r, records):
+    return any(s is not r and s['cost'] <= r['cost'] and abs(s['error']) <= abs(r['error'])
+               and (s['cost'] < r['cost'] or abs(s['error']) < abs(r['error']))
+               for s in records)
+
+
+def test_pareto_front_is_the_non_dominated_set():
+    rng = np.random.default_rng(7)
+    # Integer costs and few error levels make ties in either coordinate common.
+    pairs = {(int(c), float(e)) for c, e in zip(rng.integers(1, 30, 80),
+                                                rng.choice([-0.03, -0.01, 0.002, 0.01, 0.05], 80))}
+    records = [{'name': f"r{k}", 'cost': c, 'error': e} for k, (c, e) in enumerate(sorted(pairs))]
+    records.append({'name': 'no reference', 'cost': 0.5, 'error': math.nan})
+    front = bench.pareto_front(records)
+    expected = {r['name'] for r in records[:-1] if not _dominated(r, records[:-1])}
+    assert {r['name'] for r in front} == expected
+    assert [r['cost'] for r in front] == sorted(r['cost'] for r in front)
+    # Of two runs equal in both, one stays.
+    twins = [{'name': 'a', 'cost': 1.0, 'error': 0.1}, {'name': 'b', 'cost': 1.0, 'error': -0.1}]
+    assert [r['name'] for r in bench.pareto_front(twins)] == ['a']
+
+
+def _record(name, cost, error_sharp, scene='discocyte', converged=1, under_resolved=0):
+    return {'name': f"{scene}-{name}", 'label': name, 'scene': scene, 'cost': cost,
+            'error_sharp': error_sharp, 'error_finest': math.nan, 'converged': converged,
+            'under_resolved': under_resolved, 'nodes': 6111, 'eps': 0.01, 'gamma': 0.8,
+            'cutoff': 1e-6, 'quad_degree': 4, 'stage1': 'newton', 'ranks': 2, 'adapt': 0.0,
+            'restart': '', 'moved': False}
+
+
+def test_recommend_picks_the_cheapest_converged_run_per_threshold():
+    records = [
+        _record('coarse', 10, 0.02),
+        _record('one', 50, 0.008),
+        _record('failed', 30, 0.009, converged=0),
+        _record('unresolved', 40, -0.004, under_resolved=1),
+        _record('half', 200, 0.004),
+        _record('other scene', 20, 0.001, scene='dumbbell'),
+        _record('fine', 500, 0.001),
+        _record('finer', 400, -0.0019),
+    ]
+    choice = bench.recommend(records, 'discocyte')
+    assert {tol: r['label'] for tol, r in choice.items()} == {
+        0.01: 'one', 0.005: 'half', 0.002: 'finer'}
+    assert bench.recommend(records, 'discocyte', (0.0005,)) == {0.0005: None}
+    assert bench.recommend(records, 'dumbbell')[0.002]['label'] == 'other scene'
+
+    text = bench.recommendation(records, (0.01, 0.0005))
+    discocyte = text.split('**Dumbbell**')[0]
+    assert '`one`' in discocyte and 'none measured reaches it' in discocyte
+    assert '`failed`' not in text and '`unresolved`' not in text
+
+
+def test_configurations_restart_from_earlier_runs_of_their_scene(tmp_path):
+    for quick in (False, True):
+        configs = bench.configurations(str(tmp_path), quick)
+        names = [c.name for c in configs]
+        assert len(set(names)) == len(names)
+        for k, c in enumerate(configs):
+            if c.restart:
+                earlier = {str(tmp_path / (d.name + '.h5')) for d in configs[:k]
+                           if d.scene == c.scene}
+                assert c.restart in earlier and 'nodes' not in c.options
+    base = next(c for c in bench.configurations(str(tmp_path)) if c.label == 'base')
+    assert base.ranks == 2 and base.options == bench.BASELINE
+    assert base.scene == 'discocyte'
+
+
+def test_report_and_figure_from_records(tmp_path):
+    records = [dict(_record(name, cost, err, scene), error_finest=fine, energy=9.5,
+                    finest=9.4, wall_time=cost, stage1_iterations=10, stage2_iterations=3,
+                    peak_rss_mb=400.0, **{name: math.nan for name in bench.TIME_ATTRS})
+               for (name, cost, err, fine), scene in itertools.product(
+                   [('a', 10, 0.05, 0.004), ('b', 30, 0.03, 0.001), ('c', 20, 0.04, 0.01)],
+                   ('discocyte', 'dumbbell'))]
+    missing = [(bench.configurations(str(tmp_path))[-1], 'restart checkpoint missing')]
+    text = bench.solve_markdown(records, missing, bench.machine(), quick=False)
+    assert '## Discocyte' in text and '## Dumbbell' in text and '## Recommendation' in text
+    assert f"`{missing[0][0].label}`: restart checkpoint missing" in text
+    assert text.count('| +0.40% |') == 2 and '| — |' in text
+    bench.plot_pareto(records, str(tmp_path / 'pareto.png'))
+    assert (tmp_path / 'pareto.png').stat().st_size > 10000
