@@ -12,7 +12,8 @@ MPIEXEC ?= mpiexec
 DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
-.PHONY: help install run check test test-1 test-2 tables adapt bench bench-basis clean
+.PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
+        adapt-12271 adapt-24597 bench bench-basis clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -20,6 +21,9 @@ help:
 	@echo "make check    a 30 s smoke run on 2 ranks"
 	@echo "make test     the test suite: serial tests, then the MPI tests on 2 ranks"
 	@echo "make tables   the paper's uniform-grid tables (1, 2) under runs/tables/"
+	@echo "make adapt-discocyte | adapt-dumbbell  the adaptive 6,124-node sequences (Tables 3, 5)"
+	@echo "make adapt-12271 | adapt-24597  the finer adaptive discocyte sequences (Table 4)"
+	@echo "make adapt    all four sequences, tables under runs/adapt/"
 	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
 	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
 
@@ -54,6 +58,17 @@ test: install
 
 tables: install
 	$(PY) -m pfmembrane.tables --np $(NP) --out runs/tables
+
+SEQUENCE = $(PY) -m pfmembrane.sequence --np $(NP)
+adapt-discocyte: install
+	$(SEQUENCE) options/adapt/discocyte --scene options/discocyte.opts
+adapt-dumbbell: install
+	$(SEQUENCE) options/adapt/dumbbell --scene options/dumbbell.opts
+adapt-12271: install
+	$(SEQUENCE) options/adapt/discocyte_12271 --scene options/discocyte.opts
+adapt-24597: install
+	$(SEQUENCE) options/adapt/discocyte_24597 --scene options/discocyte.opts
+adapt: adapt-discocyte adapt-dumbbell adapt-12271 adapt-24597
 
 bench: install
 	$(PY) -m pfmembrane.bench solve --out runs/bench

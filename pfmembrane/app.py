@@ -8,17 +8,22 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import checkpoint, nodes as nodesets, options
+from . import adapt, checkpoint, limit, nodes as nodesets, options
 from .assembly import Problem
 from .nodes import spacing_peak
 from .discretization import Grid
 from .initial import spheroid_phi
 from .solver import Solver, SolveError
+from .faults import Interrupted
 
 # eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
 # distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
 # refused 1.18-1.25).
 RESOLUTION = 1.5
+# Log events whose times the checkpoint reports: functionals and their derivatives
+# into Vec/Mat, and the linear solves (factorizations included).
+ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
+LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 
 
 def resolved_eps(grid):
@@ -27,11 +32,49 @@ def resolved_eps(grid):
 
 
 def start_nodes(p, comm):
-    """Nodes and nodal phi (or None) from the restart checkpoint or a uniform grid."""
-    if p.restart:
-        ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
+    """Nodes and nodal phi (or None) from the restart checkpoint or a uniform grid;
+    with -pf_adapt the checkpoint's nodes are relocated and its phi transferred."""
+    if not p.restart:
+        return nodesets.uniform(p.box, p.nodes), None
+    ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
+    if not p.adapt:
         return ck.nodes, ck.phi
-    return nodesets.uniform(p.box, p.nodes), None
+    stage = PETSc.Log.Stage('pfAdapt')
+    stage.push()
+    xy, phi, info = adapt.relocate(comm.tompi4py(), ck.nodes, ck.phi, p.box,
+                                   ck.attrs['gamma'], ck.attrs.get('cutoff', p.cutoff), p.adapt)
+    stage.pop()
+    PETSc.Sys.Print(f"adapt: CVT f={p.adapt:g} of {p.restart}: {info['iterations']} Lloyd steps "
+                    f"(movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
+                    f"{info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
+                    f"{info['time']:.2f} s")
+    return xy, phi
+
+
+def sharp_comparison(comm, xy, phi, attrs):
+    """Energy error and level-set distance against the sharp-interface shape of
+    the scene, as checkpoint attributes (none when no level set exists).
+
+    Collective; rank 0 computes, the others receive.
+    """
+    result = {}
+    if comm.getRank() == 0:
+        try:
+            c = limit.compare(checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs))
+            result = {'sharp_energy': c['energy_sharp'], 'sharp_rel_error': c['rel_error'],
+                      'sharp_dist_max': c['dist_max'], 'sharp_dist_mean': c['dist_mean']}
+        except ValueError as e:
+            PETSc.Sys.Print(f"sharp interface: no comparison ({e})", comm=PETSc.COMM_SELF)
+    return comm.tompi4py().bcast(result, root=0)
+
+
+def event_seconds(comm, names, stages):
+    """Seconds spent in the named log events during the stages, max over ranks.
+
+    Collective.
+    """
+    mine = sum(PETSc.Log.Event(name).getPerfInfo(s.id)['time'] for name in names for s in stages)
+    return comm.tompi4py().allreduce(mine, op=MPI.MAX)
 
 
 def run(comm):
@@ -41,6 +84,7 @@ def run(comm):
         PETSc.Sys.Print(options.help_text())
         return 0
     p = options.read(opts)
+    PETSc.Log.begin()  # event times feed the checkpoint's time split
     t_start = time.perf_counter()
     output = p.output or options.default_output(p)
     size = comm.getSize()
@@ -48,12 +92,12 @@ def run(comm):
                     f"v={p.reduced_volume:g} box={p.box[0]:g}x{p.box[1]:g} gamma={p.gamma:g} "
                     f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}")
 
-    stage = PETSc.Log.Stage('pfBasis')
-    stage.push()
     t0 = time.perf_counter()
     xy, phi0 = start_nodes(p, comm)
+    basis_stage = PETSc.Log.Stage('pfBasis')
+    basis_stage.push()
     grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree)
-    stage.pop()
+    basis_stage.pop()
     eps_min = resolved_eps(grid)
     under = p.eps < eps_min
     PETSc.Sys.Print(f"grid: {len(xy)} nodes ({grid.layout.nglobal} free), {grid.nquad} quadrature "
@@ -62,6 +106,10 @@ def run(comm):
         raise options.UsageError(
             f"eps {p.eps:g} is below what this grid resolves (eps_min = {eps_min:.4g}); "
             "use more nodes, an adapted grid, or -pf_force to run anyway")
+    basis_stage.push()
+    grid.gram  # stage 2 always needs the Hessian: its products are set up with the basis
+    basis_stage.pop()
+    t_setup = time.perf_counter() - t0
 
     problem = Problem(grid, p.eps, p.k, p.c0, (p.area, p.volume, 0.0), p.zc)
     x = problem.create_vec()
@@ -74,10 +122,12 @@ def run(comm):
         x.setArray(phi0[own])
 
     solver = Solver(problem, p)
-    converged, message = True, None
+    converged, message, status = True, None, 0
+    solve_stages = []
     try:
         for name, fn in (('pfStage1', solver.stage1), ('pfStage2', solver.stage2)):
             stage = PETSc.Log.Stage(name)
+            solve_stages.append(stage)
             stage.push()
             try:
                 vals, res = fn(x)
@@ -89,8 +139,9 @@ def run(comm):
                 f"{' (' + str(s['inner']) + ' inner)' if 'inner' in s else ''}, E {s['energy']:.8f}, "
                 f"constraint residual {s['residual']:.2e}, max|phi| {solver.max_phi(x):.4f}, "
                 f"{s['time']:.2f} s")
-    except SolveError as e:
+    except (SolveError, Interrupted) as e:
         converged, message = False, str(e)
+        status = e.status if isinstance(e, Interrupted) else 1
         vals, res = problem.gradients(x, solver.gE, solver.gA), None
 
     stage = PETSc.Log.Stage('pfCheckpoint')
@@ -109,18 +160,29 @@ def run(comm):
                  under_resolved=int(under), eps_min=eps_min, n_nodes=len(xy), max_phi=solver.max_phi(x),
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
+                 factorizations=solver.factorizations, adapt=p.adapt, parent=p.restart,
+                 time_setup=t_setup,
+                 time_stage1=solver.stats.get('stage1', {}).get('time', np.nan),
+                 time_stage2=solver.stats.get('stage2', {}).get('time', np.nan),
+                 time_assembly=event_seconds(comm, ASSEMBLY_EVENTS, solve_stages),
+                 time_linear=event_seconds(comm, LINEAR_EVENTS, solve_stages),
                  peak_rss_mb=comm.tompi4py().allreduce(
                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX))
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)
+    attrs.update(sharp_comparison(comm, xy, phi_nodes, attrs))
     checkpoint.write(output, xy, phi_nodes, attrs, comm=comm.tompi4py())
     stage.pop()
     PETSc.Sys.Print(
         f"result: E {vals[0]:.8f} nu_A {solver.nu[0]:.6g} nu_V {solver.nu[1]:.6g} "
         f"max|phi| {solver.max_phi(x):.4f} converged {int(converged)}"
         f"{' UNDER-RESOLVED' if under else ''} wall {wall:.2f} s -> {output}")
-    if not converged:
+    if 'sharp_energy' in attrs:
+        PETSc.Sys.Print(
+            f"sharp interface: E {attrs['sharp_energy']:.6f}, relative error "
+            f"{100 * attrs['sharp_rel_error']:+.3f}%, phi_h = 0 within {attrs['sharp_dist_max']:.2e} "
+            f"(mean {attrs['sharp_dist_mean']:.2e}) of its curve")
+    if not converged and comm.getRank() == 0:
         sys.stderr.write(f"pfmembrane: {message} (checkpoint {output} marked converged = 0)\n")
-        return 1
-    return 0
+    return status

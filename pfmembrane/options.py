@@ -2,13 +2,23 @@
 
 Everything else receives a plain `Params`. Options use the prefix `pf_`;
 solver options keep PETSc's names under the prefixes `stage1_` and `stage2_`.
+A `-pf_` name that `Params` does not know is refused before any work; any
+other option still unused when a run has finished is refused at the end
+(`check_unused`), unless `-options_left` asks for PETSc's own report.
 """
 from dataclasses import dataclass, fields
+import ctypes
+import difflib
 import math
+import os
+import tempfile
+
+import numpy as np
 
 BRANCHES = ('oblate', 'prolate')
 STAGE1 = ('newton', 'tao')
 QUADRATURE = (1, 2, 4, 5)
+MIN_NODES = 200
 
 
 class UsageError(Exception):
@@ -76,6 +86,8 @@ HELP = {
     'force': 'run even when eps is below what the grid resolves (result flagged)',
 }
 
+KINDS = {float: 'a number', int: 'an integer', bool: 'true or false', tuple: 'two numbers Rb,Zb'}
+
 
 def help_text():
     """The application options with their defaults."""
@@ -86,6 +98,10 @@ def help_text():
         if f.name == 'box':
             default = '1.5,2'
         lines.append(f"  -pf_{f.name:<16s} {str(default) or 'none':<10s} {HELP[f.name]}")
+    lines += ['Options nothing used are errors (-options_left: warnings).',
+              'Exit status: 0 converged; 1 not converged; 2 invalid input; 3 PETSc error;',
+              '4 aborted; 128+N stopped by signal N (SIGTERM, SIGINT). With 1 and 128+N the',
+              'checkpoint of the last iterate is still written, marked converged = 0.']
     return '\n'.join(lines)
 
 
@@ -93,7 +109,7 @@ def _get(opts, name, kind, default):
     key = 'pf_' + name
     if not opts.hasName(key):
         return default
-    text = opts.getString(key, '')
+    text = opts.getString(key, '') or ''
     try:
         if kind is bool:
             if text.lower() in ('', 'true', '1', 'yes', 'on'):
@@ -101,6 +117,10 @@ def _get(opts, name, kind, default):
             if text.lower() in ('false', '0', 'no', 'off'):
                 return False
             raise ValueError
+        if kind is str:
+            if not text:
+                raise UsageError(f"-{key} needs a value")
+            return text
         if kind is tuple:
             value = tuple(float(t) for t in text.split(','))
             if len(value) != 2:
@@ -113,61 +133,176 @@ def _get(opts, name, kind, default):
             return int(value)
         return kind(text)
     except ValueError:
-        raise UsageError(f"-{key}: cannot read '{text}' as {kind.__name__}") from None
+        raise UsageError(f"-{key}: cannot read {text!r} as {KINDS[kind]}") from None
+
+
+def check_names(opts):
+    """Refuse a `-pf_` option that `Params` does not know: a typo must fail
+    before the expensive work, not at the end of the run."""
+    known = ['pf_' + f.name for f in fields(Params)]
+    for name in sorted(opts.getAll()):
+        # PETSc matches option names without regard to case.
+        if name.lower().startswith('pf_') and name.lower() not in known:
+            guess = difflib.get_close_matches(name.lower(), known, n=1)
+            hint = f" (did you mean -{guess[0]}?)" if guess else ''
+            raise UsageError(f"unknown option {'-' + name!r}{hint}; -help lists the options")
 
 
 def read(opts):
     """Params from a petsc4py Options database, validated."""
+    check_names(opts)
     values = {f.name: _get(opts, f.name, type(f.default), f.default) for f in fields(Params)}
     p = Params(**values)
     validate(p)
     return p
 
 
+def _require(ok, name, what, value):
+    if not ok:
+        raise UsageError(f"-pf_{name} must be {what} (got {value!r})")
+
+
 def validate(p):
-    """Raise UsageError with one clear line for any inconsistent setting."""
-    for name in ('eps', 'k', 'radius', 'gamma', 'reduced_volume', 'cutoff', 'c0', 'adapt', 'mu'):
-        if not math.isfinite(getattr(p, name)):
-            raise UsageError(f"-pf_{name} must be a finite number")
-    if p.eps <= 0:
-        raise UsageError(f"-pf_eps must be > 0 (got {p.eps:g})")
-    if p.k <= 0 or p.radius <= 0 or p.gamma <= 0:
-        raise UsageError("-pf_k, -pf_radius and -pf_gamma must be > 0")
+    """Raise UsageError with one line naming the option for any inconsistent setting."""
+    for f in fields(Params):
+        value = getattr(p, f.name)
+        if f.type is float:
+            _require(math.isfinite(value), f.name, 'a finite number', value)
+    _require(len(p.box) == 2 and all(math.isfinite(b) and b > 0 for b in p.box),
+             'box', 'two positive numbers Rb,Zb', p.box)
+    for name in ('eps', 'k', 'radius', 'gamma'):
+        _require(getattr(p, name) > 0, name, '> 0', getattr(p, name))
     if not 0.0 < p.reduced_volume <= 1.0:
-        raise UsageError(f"-pf_reduced_volume must lie in (0, 1] (got {p.reduced_volume:g}): "
+        raise UsageError(f"-pf_reduced_volume must lie in (0, 1] (got {p.reduced_volume!r}): "
                          "no closed surface encloses more than the sphere of the same area")
     if p.branch not in BRANCHES:
-        raise UsageError(f"-pf_branch: unknown shape '{p.branch}' (choose {', '.join(BRANCHES)})")
+        raise UsageError(f"-pf_branch: unknown shape {p.branch!r} (choose {', '.join(BRANCHES)})")
     if p.stage1 not in STAGE1:
-        raise UsageError(f"-pf_stage1: unknown solver '{p.stage1}' (choose {', '.join(STAGE1)})")
-    if p.quad_degree not in QUADRATURE:
-        raise UsageError(f"-pf_quad_degree must be one of {QUADRATURE}")
-    if not 0.0 < p.cutoff < 1.0:
-        raise UsageError("-pf_cutoff must lie in (0, 1)")
-    if p.adapt < 0 or p.mu < 0:
-        raise UsageError("-pf_adapt and -pf_mu must be >= 0")
-    if not all(math.isfinite(b) and b > 0 for b in p.box):
-        raise UsageError("-pf_box must be two positive numbers Rb,Zb")
-    if p.nodes < 200 and not p.restart:
-        raise UsageError(f"-pf_nodes {p.nodes} is too few: at least 200 nodes are needed")
+        raise UsageError(f"-pf_stage1: unknown solver {p.stage1!r} (choose {', '.join(STAGE1)})")
+    _require(p.quad_degree in QUADRATURE, 'quad_degree', f"one of {QUADRATURE}", p.quad_degree)
+    for name in ('cutoff', 'stage1_rtol', 'stage2_rtol'):
+        _require(0.0 < getattr(p, name) < 1.0, name, 'in (0, 1)', getattr(p, name))
+    for name in ('adapt', 'mu'):
+        _require(getattr(p, name) >= 0, name, '>= 0', getattr(p, name))
+    _require(p.stage1_max_it >= 1, 'stage1_max_it', '>= 1', p.stage1_max_it)
+    if p.nodes < MIN_NODES and not p.restart:
+        raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
     check_fits(p)
 
 
 def check_fits(p):
-    """The initial spheroid of the branch, with a 3 eps margin, must fit the box."""
+    """Semi-axes (a, c) of the initial spheroid of the branch, which with a
+    3 eps margin must fit the box."""
     from .initial import spheroid_axes
-    a, c = spheroid_axes(p.area, p.volume, p.branch)
+    scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
+             f"-pf_branch {p.branch}")
+    try:
+        # Floating-point trouble means no spheroid, as an error rather than a warning on stderr.
+        with np.errstate(divide='raise', over='raise', invalid='raise', under='ignore'):
+            a, c = spheroid_axes(p.area, p.volume, p.branch)
+    except (ValueError, ArithmeticError):
+        a = c = math.nan
+    if not (0 < a < math.inf and 0 < c < math.inf):
+        raise UsageError(f"no spheroid has the area and volume of {scene}: "
+                         "the initial guess cannot be built")
     Rb, Zb = p.box
     margin = 3.0 * p.eps
     if a + margin > Rb or c + margin > 0.5 * Zb:
         raise UsageError(
-            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle (semi-axes a={a:.4g}, "
-            f"c={c:.4g}) with a margin of 3 eps: need Rb >= {a + margin:.4g}, Zb >= {2 * (c + margin):.4g}")
+            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (semi-axes "
+            f"a={a:.4g}, c={c:.4g}) with a margin of 3 -pf_eps: need Rb >= {a + margin:.4g}, "
+            f"Zb >= {2 * (c + margin):.4g}")
     return a, c
 
 
 def default_output(p):
     return f"runs/{p.branch}_eps{p.eps:g}.h5"
+
+
+def check_output(path, comm):
+    """Refuse, before any work, a checkpoint path that cannot be written.
+
+    Collective: rank 0, the rank that writes checkpoints, decides for all.
+
+    Parameters
+    ----------
+    path : str
+        Checkpoint path; missing directories are created when it is written.
+    comm : mpi4py.MPI.Comm
+    """
+    problem = _output_problem(path) if comm.Get_rank() == 0 else None
+    problem = comm.bcast(problem, root=0)
+    if problem:
+        raise UsageError(f"-pf_output {path!r}: {problem}")
+
+
+def _output_problem(path):
+    target = os.path.abspath(path)
+    if os.path.isdir(target):
+        return "is a directory"
+    parent = os.path.dirname(target)
+    while not os.path.lexists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        return f"{parent!r} is not a directory"
+    # Permission bits do not tell (root, read-only mounts): try to create a file.
+    try:
+        fd, probe = tempfile.mkstemp(dir=parent, prefix='.pfmembrane-probe-')
+    except OSError as e:
+        return f"cannot create files in {parent!r} ({e.strerror})"
+    os.close(fd)
+    os.remove(probe)
+    return None
+
+
+def check_unused(opts, comm, given):
+    """Refuse options given to a finished run that nothing used.
+
+    Collective. The PETSc database marks every option looked up; those of
+    `given` (the names present at start-up) that no rank looked up are
+    misspelt, or meant for a solver this run does not create. With `-help`
+    nothing was meant to be used; with `-options_left` PETSc reports them
+    itself when it finalizes.
+
+    Parameters
+    ----------
+    opts : petsc4py.PETSc.Options
+        The global database.
+    comm : mpi4py.MPI.Comm
+    given : iterable of str
+        Option names (without the dash) present before the run.
+    """
+    if opts.hasName('help') or opts.hasName('options_left'):
+        return
+    mine = set(_options_left()) & {name.lower() for name in given}
+    unused = sorted(set.intersection(*map(set, comm.allgather(sorted(mine)))))
+    if unused:
+        raise UsageError(
+            f"option{'s' if len(unused) > 1 else ''} {', '.join('-' + n for n in unused)} "
+            "never used (misspelt, or for a solver this run does not create); "
+            "-options_left reports them without failing")
+
+
+def _options_left():
+    """Names (lower case, without the dash) of the options nothing looked up.
+
+    petsc4py has no wrapper of PetscOptionsLeftGet; it is reached through the
+    PETSc library the extension module links.
+    """
+    from petsc4py import PETSc
+    lib = ctypes.CDLL(PETSc.__file__)
+    pint = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+    strings = ctypes.POINTER(ctypes.c_char_p)
+    args = [ctypes.c_void_p, ctypes.POINTER(pint), ctypes.POINTER(strings),
+            ctypes.POINTER(strings)]
+    lib.PetscOptionsLeftGet.argtypes = lib.PetscOptionsLeftRestore.argtypes = args
+    n, names, values = pint(), strings(), strings()
+    refs = (None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values))
+    if lib.PetscOptionsLeftGet(*refs):
+        raise RuntimeError("PetscOptionsLeftGet failed")
+    left = [names[i].decode().lower() for i in range(n.value)]
+    lib.PetscOptionsLeftRestore(*refs)
+    return left
 
 
 def stage1_penalty(p):

@@ -10,7 +10,11 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import NCON
+from .faults import poll
 from .options import stage1_penalty
+
+
+SHIFT_GROWTH = 8.0
 
 
 class SolveError(Exception):
@@ -36,12 +40,15 @@ class Solver:
         self.C = [self.gA, problem.grad_V, problem.grad_M]
         self.scale = np.array([params.area, params.volume, params.volume * params.radius])
         self.nu = np.zeros(NCON)
+        self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
+        self.factorizations = 0
         self.mpi = problem.mpi
         self.stats = {}
 
     # -- helpers ---------------------------------------------------------------
     def evaluate(self, x):
         """Values (E, A, V, M), constraint residual c - c0; fills gE, gA."""
+        poll(self.mpi)  # every iteration of both stages passes here: leave together on a signal
         vals = self.P.gradients(x, self.gE, self.gA)
         return vals, vals[1:] - self.P.targets
 
@@ -110,7 +117,7 @@ class Solver:
         K = P.bordered_matrix()
         rhs, sol = K.createVecs()
         g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
-        shift, nl = 0.0, P.layout.nowned
+        nl = P.layout.nowned
         for it in range(max_it):
             vals, res = self.evaluate(x)
             lam = self.nu - res / mu
@@ -121,23 +128,29 @@ class Solver:
                 return it
             La = self._augmented(vals, res, mu)
             P.assemble_bordered(x, lam[0], self.C, -mu)
-            applied = 0.0
+            # Hess L_A may be indefinite away from the minimizer: shift it (Nocedal-Wright
+            # 3.4), first by a quarter of the shift that last sufficed, then by factors
+            # SHIFT_GROWTH from a tenth of the mean diagonal. The factorization's inertia
+            # says whether a shift suffices; the matrix is shifted in place, not rebuilt.
+            scale = self._mean_diagonal(K)
+            applied = self._shift
+            if applied:
+                P.shift_hessian(applied)
             while True:
                 ksp.setOperators(K)
                 rhs.zeroEntries()
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
                 ksp.solve(rhs, sol)
+                self.factorizations += 1
                 nneg = self._negative_pivots(ksp)
                 d.setArray(sol.getArray(readonly=True)[:nl])
                 slope = g.dot(d)
                 if (nneg is None or nneg == NCON) and slope < 0:
                     break
-                # Hess L_A is indefinite here: shift it (Nocedal-Wright 3.4), reusing the shift
-                # that worked last time as the first try.
-                shift = max(4 * shift, 1e-4) if applied else max(shift, 1e-4)
+                shift = SHIFT_GROWTH * applied if applied else 0.1 * scale
                 P.shift_hessian(shift - applied)
                 applied = shift
-            shift = applied / 4 if applied > 4e-4 else 0.0
+            self._shift = applied / 4 if applied > 1e-3 * scale else 0.0
             t = 1.0
             while True:
                 x.copy(xt)
@@ -151,6 +164,10 @@ class Solver:
             if gtol is None and it >= 2:
                 return it + 1
         return max_it
+
+    @staticmethod
+    def _mean_diagonal(K):
+        return K.getDiagonal().norm(PETSc.NormType.NORM_1) / K.getSize()[0]
 
     def _negative_pivots(self, ksp):
         try:
@@ -211,6 +228,7 @@ class Solver:
         def jacobian(snes, XX, J, Pm):
             nu = unpack(XX)
             self.evaluate(xx)  # grad A at this X: the last residual may have been elsewhere
+            self.factorizations += 1
             P.assemble_bordered(xx, nu[0], self.C, 0.0)
 
         snes = PETSc.SNES().create(P.comm)

@@ -1,0 +1,71 @@
+"""Interruption by SIGTERM or SIGINT without losing the run.
+
+The signal handler only records the signal. The solver polls the record
+collectively once per iteration (`poll`, from `Solver.evaluate`), so every
+rank raises `Interrupted` at the same iteration, even when only one rank
+received the signal; the application then checkpoints its last iterate with
+``converged = 0`` and exits with status 128 + the signal number (143 for
+SIGTERM, 130 for SIGINT), the shell's convention for a signalled process.
+
+A second signal ends the process at once with the signal's default action;
+the checkpoint file is replaced atomically, so the last complete one stays.
+
+Under Open MPI, `mpiexec` turns SIGTERM and SIGINT into SIGTERM to every
+rank and sends SIGKILL one second later; give the ranks time to checkpoint
+with ``OMPI_MCA_odls_base_sigkill_timeout=60`` (seconds).
+"""
+import signal
+
+from mpi4py import MPI
+
+SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+_received = 0  # number of the first signal received, 0 while none
+
+
+class Interrupted(Exception):
+    """A run stopped by a signal, raised on every rank at the same poll.
+
+    Attributes
+    ----------
+    signum : int
+        The signal (the largest number when ranks received different ones).
+    status : int
+        Exit status of the process: 128 + `signum`.
+    """
+
+    def __init__(self, signum):
+        self.signum = signum
+        self.status = 128 + signum
+        super().__init__(f"interrupted by {signal.Signals(signum).name}")
+
+
+def _record(signum, frame):
+    global _received
+    if _received:
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+    _received = signum
+
+
+def install():
+    """Record SIGTERM and SIGINT instead of dying. Not collective."""
+    for signum in SIGNALS:
+        signal.signal(signum, _record)
+        # Restart interrupted system calls in MPI, HDF5 and MUMPS rather than
+        # have them fail with EINTR: the record is all that matters.
+        signal.siginterrupt(signum, False)
+
+
+def poll(comm):
+    """Raise `Interrupted` on every rank if any rank received a signal.
+
+    Collective: one allreduce of one integer.
+
+    Parameters
+    ----------
+    comm : mpi4py.MPI.Comm
+    """
+    signum = comm.allreduce(_received, op=MPI.MAX)
+    if signum:
+        raise Interrupted(signum)

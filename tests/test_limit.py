@@ -1,0 +1,185 @@
+"""Tests of pfmembrane.limit: extrapolation, level set, distances, CLI."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from pfmembrane import checkpoint, limit  # noqa: E402
+from pfmembrane import nodes as nodesets  # noqa: E402
+
+BOX = (0.6, 1.0)
+R, ZC = 0.3, 0.5          # sphere of radius R centred on the axis at z = Zb / 2
+E0, A1, A2 = 9.1, 2.0, 300.0
+
+
+def sphere_checkpoint(path, eps=0.05, n=1500, energy=7.0, **scene):
+    """Checkpoint of phi = tanh(d / (sqrt2 eps)), d the signed distance to
+    the sphere, on a uniform grid; Dirichlet nodes at -1 as the solver
+    stores them."""
+    nodes = nodesets.uniform(BOX, n)
+    d = R - np.hypot(nodes[:, 0], nodes[:, 1] - ZC)
+    phi = np.tanh(d / (np.sqrt(2.0) * eps))
+    phi[nodesets.dirichlet_mask(nodes, BOX)] = -1.0
+    attrs = {"energy": energy, "area": 4 * np.pi * R ** 2,
+             "volume": 4 * np.pi * R ** 3 / 3, "moment": 0.0, "eps": eps,
+             "k": 1.0, "c0": 0.0, "gamma": 0.8, "nu_area": 0.0,
+             "nu_volume": 0.0, "converged": 1, "wall_time": 1.0, "box": BOX,
+             "cutoff": 1e-6, "radius": R, "reduced_volume": 1.0,
+             "branch": "oblate"}
+    attrs.update(scene)
+    checkpoint.write(path, nodes, phi, attrs)
+    return checkpoint.read(path)
+
+
+@pytest.fixture(scope="module")
+def sphere(tmp_path_factory):
+    return sphere_checkpoint(tmp_path_factory.mktemp("limit") / "sphere.h5")
+
+
+def spacing(ckpt):
+    return float(np.mean(nodesets.nodal_spacing(ckpt.nodes)))
+
+
+@pytest.mark.parametrize("eps", [[0.05, 0.04, 0.03],
+                                 [0.05, 0.04, 0.03, 0.02, 0.01, 0.01]])
+def test_extrapolation_of_a_quadratic_is_exact(eps):
+    eps = np.array(eps)
+    fit = limit.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2)
+
+    assert fit.e0 == pytest.approx(E0, abs=1e-11)
+    assert np.allclose(fit.coefficients, [E0, A1, A2], rtol=1e-8)
+    assert fit.residual < 1e-12
+    # The line through the two smallest eps misses E0 by A2 eps_1 eps_2.
+    smallest = np.unique(eps)[:2]
+    assert fit.e0_linear == pytest.approx(E0 - A2 * np.prod(smallest), abs=1e-11)
+    assert fit.error == pytest.approx(A2 * np.prod(smallest), abs=1e-10)
+
+
+@pytest.mark.parametrize("a3", [-2000.0, 2000.0])
+def test_error_estimate_on_a_cubic_covers_the_error(a3):
+    eps = np.array([0.01, 0.02, 0.03, 0.04])
+    fit = limit.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2 + a3 * eps ** 3)
+
+    error = abs(fit.e0 - E0)
+    assert error > 1e-3                       # the cubic term is felt
+    assert error <= fit.error <= 10.0 * error
+    assert np.isfinite(fit.e0_reduced)
+    assert fit.residual > 0.0
+
+
+def test_extrapolation_needs_three_eps():
+    with pytest.raises(ValueError, match="three distinct eps"):
+        limit.extrapolate([0.04, 0.04, 0.05], [9.6, 9.6, 9.7])
+
+
+def test_level_set_is_the_zero_of_the_interpolant(sphere):
+    curve = limit.level_set(sphere, samples=300)
+    h = spacing(sphere)
+
+    assert len(curve) == 1 and len(curve[0]) == 300
+    points = curve[0]
+    assert np.max(np.abs(limit.PhaseField(sphere)(points))) < 1e-12
+    # From pole to pole along the axis.
+    assert np.all(points[:, 0] >= 0.0)
+    assert np.allclose(points[[0, -1], 0], 0.0, atol=1e-12)
+    # phi_h smooths the nodal profile: its zero is a circle slightly inside
+    # the exact one (by about 0.02 h here), the same all along.
+    radial = np.hypot(points[:, 0], points[:, 1] - ZC) - R
+    assert np.max(np.abs(radial)) < 0.05 * h
+    assert np.ptp(radial) < 1e-3 * h
+
+
+def test_interpolant_gradient_matches_differences(sphere):
+    field = limit.PhaseField(sphere)
+    points = np.array([[0.0, ZC + R], [0.2, 0.6], [0.25, 0.3]])
+    step = 1e-6
+
+    _, grad = field(points, gradient=True)
+    for i in range(2):
+        shift = step * np.eye(2)[i]
+        difference = (field(points + shift) - field(points - shift)) / (2 * step)
+        # The mirrored nodes extend the hull to r < 0: central also at r = 0.
+        assert np.allclose(grad[:, i], difference, rtol=1e-6, atol=1e-6)
+    assert abs(grad[0, 0]) < 1e-10          # phi_h is even in r
+
+
+def test_distance_of_a_curve_to_itself_is_zero():
+    shape = limit.reference("oblate", 0.8, 0.0, 0.4, 1.0)
+    curve = [np.column_stack([shape.r, shape.z + 1.0])]
+
+    dist = limit.distance(curve, shape, centre=1.0)
+    assert max(dist.values()) < 1e-12
+
+
+def test_distance_to_a_shifted_sphere_is_the_shift():
+    shape = limit.reference("prolate", 1.0, 0.0, R, 1.0)
+    shift = 0.01
+    curve = [np.column_stack([shape.r, shape.z + ZC + shift])]
+
+    dist = limit.distance(curve, shape, centre=ZC)
+    assert dist["max"] == pytest.approx(shift, rel=1e-6)
+    assert dist["hausdorff"] == pytest.approx(shift, rel=1e-6)
+    # Arc-length mean of | |p - c| - R | over the shifted half circle.
+    theta = np.linspace(0.0, np.pi, 20001)
+    gap = np.abs(np.sqrt(R ** 2 + 2 * R * shift * np.cos(theta) + shift ** 2) - R)
+    exact = np.sum(0.5 * (gap[1:] + gap[:-1])) / (len(theta) - 1)
+    assert dist["mean"] == pytest.approx(exact, rel=1e-3)
+
+
+def test_reference_is_cached_and_read_only():
+    shape = limit.reference("oblate", 0.8, 0.0, 0.4, 1.0)
+
+    assert limit.reference("oblate", np.float64(0.8), radius=0.4) is shape
+    assert shape.energy == pytest.approx(9.12657, rel=1e-6)
+    with pytest.raises(ValueError):
+        shape.r[0] = 1.0
+
+
+def test_compare_sphere_scene(tmp_path):
+    # v = 1: the sharp limit is the sphere, E = 2 pi k (1 - C0 R)^2.
+    k, c0 = 2.0, 1.0
+    e_sharp = 2 * np.pi * k * (1 - c0 * R) ** 2
+    ckpt = sphere_checkpoint(tmp_path / "s.h5", energy=1.1 * e_sharp, k=k, c0=c0)
+
+    result = limit.compare(ckpt)
+    h = spacing(ckpt)
+    assert result["energy_sharp"] == pytest.approx(e_sharp, rel=1e-12)
+    assert result["rel_error"] == pytest.approx(0.1, rel=1e-12)
+    assert result["dist_max"] < 0.05 * h
+    assert result["dist_hausdorff"] == pytest.approx(result["dist_max"], rel=1e-3)
+    assert result["dist_mean"] == pytest.approx(result["dist_max"], rel=1e-2)
+
+
+def test_compare_names_a_missing_attribute(sphere):
+    attrs = {key: value for key, value in sphere.attrs.items() if key != "cutoff"}
+    stripped = checkpoint.Checkpoint(sphere.nodes, sphere.phi, attrs)
+
+    with pytest.raises(ValueError, match="cutoff"):
+        limit.compare(stripped)
+
+
+def test_cli_writes_report_and_figure(tmp_path):
+    eps = [0.06, 0.05, 0.04]
+    paths = []
+    for e in eps:
+        path = tmp_path / f"s{e}.h5"
+        sphere_checkpoint(path, eps=e, n=800, energy=E0 + A1 * e + A2 * e * e)
+        paths.append(str(path))
+    out = tmp_path / "report" / "sphere"
+
+    assert limit.main(paths + ["--out", str(out), "--samples", "100"]) == 0
+
+    text = (tmp_path / "report" / "sphere.md").read_text()
+    assert text.count("| s0.0") == 3
+    assert f"E0 = {E0:.5f}" in text
+    assert (tmp_path / "report" / "sphere.png").stat().st_size > 10_000
+
+
+def test_cli_reports_an_unreadable_checkpoint(tmp_path, capsys):
+    status = limit.main([str(tmp_path / "missing.h5"), "--out", str(tmp_path / "x")])
+
+    assert status == 1
+    assert "no such file" in capsys.readouterr().err
