@@ -13,7 +13,7 @@ DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy 
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 bench bench-basis clean
+        adapt-12271 adapt-24597 bench bench-basis branches figures clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -26,6 +26,8 @@ help:
 	@echo "make adapt    all four sequences, tables under runs/adapt/"
 	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
 	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
+	@echo "make branches  oblate and prolate branches, v = 0.95 -> 0.65 (Figure 6), runs/branches/"
+	@echo "make figures  the README's figures from existing checkpoints, runs/figures/index.md"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
@@ -50,7 +52,7 @@ run: install
 
 check: install
 	$(MPIEXEC) -n 2 $(PY) -m pfmembrane -options_file options/discocyte.opts \
-	  -pf_nodes 1500 -pf_eps 0.08 -pf_output runs/check.h5
+	  -pf_nodes 3000 -pf_eps 0.06 -pf_output runs/check.h5
 
 test: install
 	$(PY) -m pytest -q tests
@@ -75,6 +77,17 @@ bench: install
 
 bench-basis: install
 	$(PY) -m pfmembrane.bench basis --out runs/bench
+
+# Both branches run even if one stops early; the target fails if either did.
+BRANCH = $(PY) -m pfmembrane.branch --np $(NP) --from 0.95 --to 0.65 --step 0.05 --out runs/branches
+branches: install
+	@status=0; \
+	$(BRANCH) --branch oblate || status=1; \
+	$(BRANCH) --branch prolate || status=1; \
+	$(PY) -m pfmembrane.branch --plot runs/branches && exit $$status
+
+figures: install
+	$(PY) -m pfmembrane.figures --out runs/figures
 
 clean:
 	rm -rf $(VENV) runs/check.h5

@@ -11,7 +11,7 @@ from petsc4py import PETSc
 from . import adapt, checkpoint, limit, nodes as nodesets, options
 from .assembly import Problem
 from .nodes import spacing_peak
-from .discretization import Grid
+from .discretization import Grid, locality
 from .initial import spheroid_phi
 from .solver import Solver, SolveError
 from .faults import Interrupted
@@ -32,23 +32,26 @@ def resolved_eps(grid):
 
 
 def start_nodes(p, comm):
-    """Nodes and nodal phi (or None) from the restart checkpoint or a uniform grid;
-    with -pf_adapt the checkpoint's nodes are relocated and its phi transferred."""
+    """Nodes, nodal phi and multipliers (None, None from a uniform grid) of the
+    start: the restart checkpoint's, or with -pf_adapt its nodes relocated and
+    its phi transferred to them."""
     if not p.restart:
-        return nodesets.uniform(p.box, p.nodes), None
+        return nodesets.uniform(p.box, p.nodes), None, None
     ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
+    nu = np.array([ck.attrs.get(k, 0.0) for k in ('nu_area', 'nu_volume', 'nu_moment')])
     if not p.adapt:
-        return ck.nodes, ck.phi
+        return ck.nodes, ck.phi, nu
     stage = PETSc.Log.Stage('pfAdapt')
     stage.push()
-    xy, phi, info = adapt.relocate(comm.tompi4py(), ck.nodes, ck.phi, p.box,
-                                   ck.attrs['gamma'], ck.attrs.get('cutoff', p.cutoff), p.adapt)
+    beta = locality(ck.nodes, ck.attrs['gamma'], int(ck.attrs.get('spacing_smoothing', 0)))
+    xy, phi, info = adapt.relocate(comm.tompi4py(), ck.nodes, ck.phi, p.box, beta,
+                                   ck.attrs.get('cutoff', p.cutoff), p.adapt)
     stage.pop()
     PETSc.Sys.Print(f"adapt: CVT f={p.adapt:g} of {p.restart}: {info['iterations']} Lloyd steps "
                     f"(movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
                     f"{info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s")
-    return xy, phi
+    return xy, phi, nu
 
 
 def sharp_comparison(comm, xy, phi, attrs):
@@ -93,10 +96,10 @@ def run(comm):
                     f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}")
 
     t0 = time.perf_counter()
-    xy, phi0 = start_nodes(p, comm)
+    xy, phi0, nu0 = start_nodes(p, comm)
     basis_stage = PETSc.Log.Stage('pfBasis')
     basis_stage.push()
-    grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree)
+    grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree, p.spacing_smoothing)
     basis_stage.pop()
     eps_min = resolved_eps(grid)
     under = p.eps < eps_min
@@ -122,10 +125,18 @@ def run(comm):
         x.setArray(phi0[own])
 
     solver = Solver(problem, p)
+    stages = [('pfStage2', solver.stage2)]
+    if p.stage1 != 'none':
+        stages.insert(0, ('pfStage1', solver.stage1))
+    elif nu0 is not None:
+        solver.nu = nu0
+    else:
+        solver.evaluate(x)
+        solver.nu = solver.least_squares_multipliers()
     converged, message, status = True, None, 0
     solve_stages = []
     try:
-        for name, fn in (('pfStage1', solver.stage1), ('pfStage2', solver.stage2)):
+        for name, fn in stages:
             stage = PETSc.Log.Stage(name)
             solve_stages.append(stage)
             stage.push()
@@ -156,6 +167,7 @@ def run(comm):
                  k=p.k, c0=p.c0, gamma=p.gamma, nu_area=solver.nu[0], nu_volume=solver.nu[1],
                  nu_moment=solver.nu[2], converged=int(converged), wall_time=wall,
                  n_procs=size, cutoff=p.cutoff, quad_degree=p.quad_degree,
+                 spacing_smoothing=p.spacing_smoothing,
                  radius=p.radius, reduced_volume=p.reduced_volume, branch=p.branch,
                  under_resolved=int(under), eps_min=eps_min, n_nodes=len(xy), max_phi=solver.max_phi(x),
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),

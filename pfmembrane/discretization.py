@@ -33,6 +33,11 @@ class Operators(NamedTuple):
     z: np.ndarray
 
 
+def locality(nodes, gamma, smoothing):
+    """beta_a = gamma / h_a^2 with the smoothed nodal spacing (`nodes.nodal_spacing`)."""
+    return gamma / nodal_spacing(nodes, smoothing=smoothing) ** 2
+
+
 def folded_basis(points, nodes, beta, cutoff, derivatives):
     """Max-ent basis at `points` whose columns are the nodes themselves.
 
@@ -51,14 +56,15 @@ class Grid:
 
     Collective. Parameters are plain values: `box` = (Rb, Zb), `gamma` the
     locality, `cutoff` the support cut-off exp(-beta_a d^2) >= cutoff, `degree`
-    the Gauss rule on the Delaunay triangles.
+    the Gauss rule on the Delaunay triangles, `smoothing` the passes over the
+    nodal spacing behind beta_a. `h` is the unsmoothed spacing.
     """
 
-    def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4):
+    def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0):
         self.comm, self.nodes, self.box = comm, nodes, tuple(box)
         self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
         self.h = nodal_spacing(nodes)
-        self.beta = gamma / self.h ** 2
+        self.beta = locality(nodes, gamma, smoothing)
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)

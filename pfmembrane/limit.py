@@ -31,9 +31,8 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from pfmembrane import checkpoint, sharp
-from pfmembrane.discretization import folded_basis
+from pfmembrane.discretization import folded_basis, locality
 from pfmembrane.maxent import interpolate
-from pfmembrane.nodes import nodal_spacing
 from pfmembrane.plot import zero_contour
 
 __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "distance",
@@ -104,7 +103,8 @@ class PhaseField:
     def __init__(self, ckpt):
         self.cutoff = float(ckpt.attrs["cutoff"])
         self.nodes, self.phi = ckpt.nodes, np.asarray(ckpt.phi)
-        self.beta = float(ckpt.attrs["gamma"]) / nodal_spacing(ckpt.nodes) ** 2
+        self.beta = locality(ckpt.nodes, float(ckpt.attrs["gamma"]),
+                             int(ckpt.attrs.get("spacing_smoothing", 0)))
 
     def __call__(self, points, gradient=False):
         """phi_h at `points`, shape (M, 2), in the hull of the mirrored nodes.

