@@ -1,7 +1,8 @@
 """python -m pfmembrane [-options_file FILE] [-pf_* ...] [PETSc options]
 
 PETSc is initialized with sys.argv before anything imports it, and every
-failure ends every rank, with one line on stderr from rank 0:
+failure ends every rank, with one line on stderr (from rank 0, or from the
+failing rank when only one fails):
 
 - invalid input (an options file PETSc cannot read, an unknown or unused
   option, a bad value, an unreadable restart checkpoint, an output path that

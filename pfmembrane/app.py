@@ -183,7 +183,8 @@ def run(comm):
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)
-    attrs.update(sharp_comparison(comm, xy, phi_nodes, attrs))
+    if converged:  # an interrupted run checkpoints at once
+        attrs.update(sharp_comparison(comm, xy, phi_nodes, attrs))
     checkpoint.write(output, xy, phi_nodes, attrs, comm=comm.tompi4py())
     stage.pop()
     PETSc.Sys.Print(

@@ -3,16 +3,18 @@
 The signal handler only records the signal. The solver polls the record
 collectively once per iteration (`poll`, from `Solver.evaluate`), so every
 rank raises `Interrupted` at the same iteration, even when only one rank
-received the signal; the application then checkpoints its last iterate with
-``converged = 0`` and exits with status 128 + the signal number (143 for
+received the signal; the application then checkpoints its last iterate (in
+stage 2, which hands its iterate back only when it ends: the stage-1 result)
+with ``converged = 0`` and exits with status 128 + the signal number (143 for
 SIGTERM, 130 for SIGINT), the shell's convention for a signalled process.
 
 A second signal ends the process at once with the signal's default action;
 the checkpoint file is replaced atomically, so the last complete one stays.
 
-Under Open MPI, `mpiexec` turns SIGTERM and SIGINT into SIGTERM to every
-rank and sends SIGKILL one second later; give the ranks time to checkpoint
-with ``OMPI_MCA_odls_base_sigkill_timeout=60`` (seconds).
+Open MPI's `mpiexec`, given SIGTERM or SIGINT, sends SIGTERM to every rank
+after ``odls_base_sigkill_timeout`` seconds (default 1) and SIGKILL as long
+again later: ``OMPI_MCA_odls_base_sigkill_timeout=60`` gives the ranks a
+minute to checkpoint. Batch systems (Slurm) signal the ranks themselves.
 """
 import signal
 

@@ -187,6 +187,8 @@ def validate(p):
     for name in ('adapt', 'mu'):
         _require(getattr(p, name) >= 0, name, '>= 0', getattr(p, name))
     _require(p.stage1_max_it >= 1, 'stage1_max_it', '>= 1', p.stage1_max_it)
+    if p.adapt and not p.restart:
+        raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")

@@ -1,11 +1,17 @@
-"""The command line: help, bad input, 1 vs 2 ranks, restart (real mpiexec runs)."""
+"""The command line: help, bad input, unused options, 1 vs 2 ranks, restart, restart after
+SIGTERM (real mpiexec runs)."""
 import os
+import signal
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 import h5py
 import numpy as np
 import pytest
+
+from pfmembrane import checkpoint
+from test_faults import MID_STAGE1, Run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
@@ -26,23 +32,80 @@ def test_help_lists_the_application_options():
         assert f'-pf_{name}' in out.stdout
 
 
-@pytest.mark.parametrize('args, message', [
-    (['-pf_eps', '-0.01'], 'pf_eps must be > 0'),
-    (['-pf_eps', 'abc'], "cannot read 'abc'"),
-    (['-pf_reduced_volume', '1.2'], 'reduced_volume must lie in (0, 1]'),
-    (['-pf_reduced_volume', 'nan'], 'finite'),
-    (['-pf_branch', 'torus'], "unknown shape 'torus'"),
-    (['-pf_box', '0.5,0.6'], 'cannot hold the oblate vesicle'),
-    (['-pf_nodes', '50'], 'too few'),
-    (['-pf_eps', '0.03'], 'below what this grid resolves'),
-    (['-pf_restart', '/nonexistent/x.h5'], 'no such file'),
-])
-def test_bad_input_is_one_line_and_nonzero_on_every_rank(args, message):
-    out = pfm('-options_file', 'options/discocyte.opts', '-pf_nodes', '1500', *args)
+BASE = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '1500']
+# Each case: arguments ({tmp}: the directory of bad_files) and the message it must give.
+BAD_INPUT = {
+    'eps<0': ([*BASE, '-pf_eps', '-0.01'], 'pf_eps must be > 0'),
+    'eps=0': ([*BASE, '-pf_eps', '0'], '-pf_eps must be > 0'),
+    'eps-text': ([*BASE, '-pf_eps', 'abc'], "cannot read 'abc'"),
+    'v>1': ([*BASE, '-pf_reduced_volume', '1.2'], 'reduced_volume must lie in (0, 1]'),
+    'v-nan': ([*BASE, '-pf_reduced_volume', 'nan'], 'finite'),
+    'branch': ([*BASE, '-pf_branch', 'torus'], "unknown shape 'torus'"),
+    'box': ([*BASE, '-pf_box', '0.5,0.6'], 'cannot hold the oblate vesicle'),
+    'nodes': ([*BASE, '-pf_nodes', '50'], 'too few'),
+    'unresolved': ([*BASE, '-pf_eps', '0.03'], 'below what this grid resolves'),
+    'typo': ([*BASE, '-pf_epss', '0.03'], "unknown option '-pf_epss' (did you mean -pf_eps?)"),
+    'typo-in-file': (['-options_file', '{tmp}/typo.opts'],
+                     "unknown option '-pf_nodez' (did you mean -pf_nodes?)"),
+    'no-options-file': (['-options_file', '{tmp}/absent.opts'], 'Unable to open options file'),
+    'bad-options-file': (['-options_file', '{tmp}/malformed.opts'],
+                         'Unknown first token in options file'),
+    'restart-absent': ([*BASE, '-pf_restart', '/nonexistent/x.h5'], 'no such file'),
+    'restart-text': ([*BASE, '-pf_restart', '{tmp}/text.h5'], 'not an HDF5 file'),
+    'restart-truncated': ([*BASE, '-pf_restart', '{tmp}/truncated.h5'],
+                          'truncated or corrupt HDF5 file'),
+    'restart-version': ([*BASE, '-pf_restart', '{tmp}/version.h5'], 'wrong version 2'),
+    'restart-box': ([*BASE, '-pf_restart', '{tmp}/box.h5'], 'differs from the expected'),
+    'output-dir': ([*BASE, '-pf_output', '{tmp}'], 'is a directory'),
+    'output-below-file': ([*BASE, '-pf_output', '{tmp}/text.h5/x.h5'], 'is not a directory'),
+}
+
+
+def bad_files(tmp):
+    """Options files and restart checkpoints that must be refused."""
+    (tmp / 'typo.opts').write_text('-pf_eps 0.06\n-pf_nodez 1500\n')
+    (tmp / 'malformed.opts').write_text('pf_eps 0.06\n')
+    (tmp / 'text.h5').write_text('not a checkpoint\n')
+    nodes = np.random.default_rng(0).uniform((0.0, 0.0), (1.5, 2.0), (300, 2))
+    attrs = {key: 1.0 for key in checkpoint.FLOAT_ATTRS}
+    attrs.update(converged=0, box=(1.5, 2.0))
+    for name, change in (('truncated', {}), ('version', {'version': 2}),
+                         ('box', {'box': (1.0, 2.0)})):
+        path = tmp / f'{name}.h5'
+        checkpoint.write(path, nodes, np.zeros(300), attrs)
+        with h5py.File(path, 'r+') as f:
+            f.attrs.update(change)
+    os.truncate(tmp / 'truncated.h5', os.path.getsize(tmp / 'truncated.h5') // 2)
+
+
+@pytest.fixture(scope='module')
+def bad_runs(tmp_path_factory):
+    """Every BAD_INPUT case, four at a time: the runs spend most of their time
+    starting up and shutting down."""
+    tmp = tmp_path_factory.mktemp('bad')
+    bad_files(tmp)
+
+    def attempt(args):
+        try:
+            return pfm(*(a.format(tmp=tmp) for a in args), timeout=120)
+        except subprocess.TimeoutExpired as e:
+            return e
+
+    with ThreadPoolExecutor(4) as pool:
+        runs = {case: pool.submit(attempt, args) for case, (args, _) in BAD_INPUT.items()}
+        return {case: run.result() for case, run in runs.items()}
+
+
+@pytest.mark.parametrize('case', BAD_INPUT)
+def test_bad_input_is_one_line_and_nonzero_on_every_rank(bad_runs, case):
+    out, message = bad_runs[case], BAD_INPUT[case][1]
+    assert not isinstance(out, subprocess.TimeoutExpired), f'{case} hung'
     assert out.returncode == 2, out.stderr
     errors = [line for line in out.stderr.splitlines() if line.startswith('pfmembrane')]
     assert len(errors) == 1 and message in errors[0], out.stderr
     assert 'Traceback' not in out.stderr
+    if case != 'unresolved':
+        assert 'grid:' not in out.stdout  # refused before the expensive work
 
 
 def _energy(path):
@@ -91,6 +154,34 @@ def test_restart_reaches_the_same_answer(runs):
     assert a['stage1_iterations'] <= 3  # it starts at the answer
 
 
+def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy(runs, tmp_path):
+    _, res = runs
+    stopped = str(tmp_path / 'stopped.h5')
+    run = Run(['-options_file', 'options/discocyte.opts', *SMALL, '-pf_monitor',
+               '-pf_output', stopped])
+    run.wait_for(MID_STAGE1)
+    # Rank 0, which writes the checkpoint, learns of the signal from the poll.
+    run.signal_ranks(signal.SIGTERM, ranks=(1,))
+    status, out, err = run.finish()
+
+    assert status == 128 + signal.SIGTERM, err
+    assert 'stage1:' not in out  # it stopped inside stage 1
+    errors = [line for line in err.splitlines() if line.startswith('pfmembrane')]
+    assert errors == [f"pfmembrane: interrupted by SIGTERM (checkpoint {stopped} "
+                      "marked converged = 0)"], err
+    assert 'Traceback' not in err
+    a, _ = _energy(stopped)
+    assert a['converged'] == 0 and np.isfinite(a['energy'])
+
+    path = str(tmp_path / 'restarted.h5')
+    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', stopped,
+              '-pf_output', path)
+    assert out.returncode == 0, out.stderr
+    b, _ = _energy(path)
+    assert b['converged'] == 1
+    assert abs(b['energy'] / _energy(res[2])[0]['energy'] - 1) < 1e-8
+
+
 def test_dumbbell_options_file_runs(tmp_path):
     path = str(tmp_path / 'dumb.h5')
     out = pfm('-options_file', 'options/dumbbell.opts', '-pf_nodes', '1200', '-pf_box', '0.6,2.0',
@@ -103,3 +194,19 @@ def test_dumbbell_options_file_runs(tmp_path):
     inside = nodes[phi > 0]
     assert np.ptp(inside[:, 1]) > 2 * inside[:, 0].max()
     assert a['converged'] == 1
+
+
+@pytest.mark.parametrize('extra, status', [([], 2), (['-options_left'], 0)],
+                         ids=['refused', 'options_left'])
+def test_an_unused_option_is_refused_after_the_run(runs, tmp_path, extra, status):
+    _, res = runs
+    path = str(tmp_path / 'unused.h5')
+    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', res[2],
+              '-pf_output', path, '-stage2_snes_fake', '1', *extra)
+    assert out.returncode == status, out.stderr
+    errors = [line for line in out.stderr.splitlines() if line.startswith('pfmembrane')]
+    if extra:  # PETSc's own report, as a warning
+        assert errors == [] and 'Option left: name:-stage2_snes_fake' in out.stdout
+    else:
+        assert len(errors) == 1 and '-stage2_snes_fake never used' in errors[0], out.stderr
+    assert _energy(path)[0]['converged'] == 1  # the result itself is kept
