@@ -125,14 +125,13 @@ def run(comm):
         x.setArray(phi0[own])
 
     solver = Solver(problem, p)
-    stages = [('pfStage2', solver.stage2)]
-    if p.stage1 != 'none':
-        stages.insert(0, ('pfStage1', solver.stage1))
-    elif nu0 is not None:
+    stages = [('pfStage1', solver.stage1), ('pfStage2', solver.stage2)]
+    if p.stage1 == 'none':
+        stages = [('pfStage2', solver.stage2_first)]
+        if nu0 is None:
+            solver.evaluate(x)
+            nu0 = solver.least_squares_multipliers()
         solver.nu = nu0
-    else:
-        solver.evaluate(x)
-        solver.nu = solver.least_squares_multipliers()
     converged, message, status = True, None, 0
     solve_stages = []
     try:

@@ -83,7 +83,7 @@ class Solver:
         mu = stage1_penalty(self.p)
         vals, res = self.evaluate(x)
         self.nu = self.least_squares_multipliers()
-        inner = self._newton if self.p.stage1 == 'newton' else self._tao
+        inner = self._tao if self.p.stage1 == 'tao' else self._newton
         iters = 0
         gtol = None
         grad_L = x.duplicate()
@@ -198,6 +198,19 @@ class Solver:
         return tao.getIterationNumber()
 
     # -- stage 2 ---------------------------------------------------------------
+    def stage2_first(self, x):
+        """Stage 2 straight from x and the multipliers (a restart near its answer);
+        should it fail, both stages again from the same start."""
+        x0, nu0 = x.copy(), self.nu.copy()
+        try:
+            return self.stage2(x)
+        except SolveError as e:
+            self.print(f"stage2: {e}; both stages from the restart instead")
+        x0.copy(x)
+        self.nu = nu0
+        self.stage1(x)
+        return self.stage2(x)
+
     def stage2(self, x):
         """Newton (SNES) on (Phi, nu): residual [grad E - C^T nu; -(c - c0)]."""
         t0 = time.perf_counter()
