@@ -7,7 +7,7 @@ Each step is an options file of the directory, run in name order as
 `mpiexec -n NP python -m pfmembrane -options_file SCENE -options_file STEP`;
 a step restarts from the checkpoint of an earlier one, with `-pf_adapt f`
 where a new grid is made. Steps whose converged checkpoint exists are not
-run again (unless --force). The sequence stops at the first failed step.
+run again (unless --force); a step whose start did not converge is not run.
 """
 import argparse
 import glob
@@ -22,13 +22,19 @@ import h5py
 from .paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
 
 
+def option_of(step, name):
+    """The last value an options file gives -name, or None."""
+    with open(step) as f:
+        found = re.findall(rf'^\s*-{name}\s+(\S+)', f.read(), flags=re.M)
+    return found[-1] if found else None
+
+
 def output_of(step):
     """The -pf_output path an options file names."""
-    with open(step) as f:
-        found = re.findall(r'^\s*-pf_output\s+(\S+)', f.read(), flags=re.M)
-    if not found:
+    out = option_of(step, 'pf_output')
+    if out is None:
         sys.exit(f"{step}: names no -pf_output")
-    return found[-1]
+    return out
 
 
 def converged(path):
@@ -40,12 +46,20 @@ def converged(path):
 
 
 def run(steps, scene, nprocs, force=False):
-    """Run the steps in order; returns {step: wall seconds or None if reused}."""
+    """Run the steps in order; returns {step: wall seconds or None if reused}.
+
+    A step whose restart checkpoint did not converge is not run; the steps
+    that do not depend on it still are.
+    """
     walls = {}
     for step in steps:
         out = output_of(step)
         if not force and converged(out):
             walls[step] = None
+            continue
+        start = option_of(step, 'pf_restart')
+        if start is not None and not converged(start):
+            print(f"{step}: not run, its start {start} did not converge", flush=True)
             continue
         cmd = ['mpiexec', '-n', str(nprocs), sys.executable, '-m', 'pfmembrane',
                '-options_file', scene, '-options_file', step]
@@ -54,8 +68,7 @@ def run(steps, scene, nprocs, force=False):
         status = subprocess.run(cmd).returncode
         walls[step] = time.perf_counter() - t0
         if status != 0:
-            print(f"{step}: exit status {status}; the sequence stops here", flush=True)
-            break
+            print(f"{step}: exit status {status}", flush=True)
     return walls
 
 
@@ -83,7 +96,7 @@ def table(steps, walls):
             f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {eps:g} | {a['eps_min']:.4f} "
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
             f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
-            f"| {int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {int(a['converged'])} "
+            f"| {_its(a['stage1_iterations'])}+{_its(a['stage2_iterations'])} | {int(a['converged'])} "
             f"| {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
     return rows, total
 
@@ -91,6 +104,11 @@ def table(steps, walls):
 def _nominal(n):
     """The paper's node count of a uniform grid of about n nodes."""
     return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))
+
+
+def _its(n):
+    """Iteration count, '-' for a stage that did not run."""
+    return '-' if n < 0 else str(int(n))
 
 
 def _num(v):

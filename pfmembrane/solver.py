@@ -248,7 +248,7 @@ class Solver:
         snes.setOptionsPrefix('stage2_')
         snes.setFunction(residual, F)
         snes.setJacobian(jacobian, K, K)
-        snes.setTolerances(rtol=self.p.stage2_rtol, atol=1e-12, max_it=20)
+        snes.setTolerances(rtol=self.p.stage2_rtol, atol=1e-12, max_it=50)
         self._configure_direct(snes.getKSP(), 'stage2_', cholesky=False)
         snes.setFromOptions()
         snes.solve(None, X)
