@@ -268,7 +268,10 @@ def basis(args):
             cmd = ['mpiexec', '-n', str(ranks), sys.executable, '-m', 'pfmembrane.bench',
                    'basis-one', '--nodes', str(n)]
             print(' '.join(cmd), flush=True)
-            proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
+            # Python's copy of the environment: MPI initialised in this process (under
+            # pytest, say) adds variables to the C one that make a child mpiexec fail.
+            proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=False,
+                                  env=dict(os.environ))
             if proc.returncode != 0:
                 raise SystemExit(f"pfmembrane.bench: exit status {proc.returncode} from "
                                  f"{' '.join(cmd)}")
@@ -345,7 +348,8 @@ def run(config, out, force=False):
         return path, f"restart checkpoint {config.restart} missing"
     cmd = command(config, path)
     print(' '.join(cmd), flush=True)
-    proc = subprocess.run(cmd, stderr=subprocess.PIPE, text=True, check=False)
+    proc = subprocess.run(cmd, stderr=subprocess.PIPE, text=True, check=False,
+                          env=dict(os.environ))
     sys.stderr.write(proc.stderr)
     if os.path.exists(path):
         return path, None

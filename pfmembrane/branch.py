@@ -175,7 +175,7 @@ def run(branch, vs, box, args):
                    '-pf_output', path] + (['-pf_restart', parent] if parent else []) + args.options
             print(' '.join(cmd), flush=True)
             t0 = time.time()
-            done = subprocess.run(cmd, stderr=subprocess.PIPE, text=True)
+            done = subprocess.run(cmd, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
             sys.stderr.write(done.stderr)
             step['wall'] = time.time() - t0
             step['status'] = done.returncode

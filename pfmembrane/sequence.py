@@ -65,7 +65,7 @@ def run(steps, scene, nprocs, force=False):
                '-options_file', scene, '-options_file', step]
         print(' '.join(cmd), flush=True)
         t0 = time.perf_counter()
-        status = subprocess.run(cmd).returncode
+        status = subprocess.run(cmd, env=dict(os.environ)).returncode
         walls[step] = time.perf_counter() - t0
         if status != 0:
             print(f"{step}: exit status {status}", flush=True)

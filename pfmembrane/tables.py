@@ -24,7 +24,7 @@ def run(branch, nodes, eps, nprocs, out, extra=()):
                '-options_file', SCENE[branch], '-pf_nodes', str(nodes), '-pf_eps', str(eps),
                '-pf_output', path, *extra]
         print(' '.join(cmd), flush=True)
-        subprocess.run(cmd, check=False)
+        subprocess.run(cmd, check=False, env=dict(os.environ))
     with h5py.File(path, 'r') as f:
         return dict(f.attrs)
 
