@@ -471,6 +471,9 @@ def _plain(value):
     return float(value) if math.isfinite(value) else None
 
 
+OVERSHOOT = 1.01  # max |phi| above this is named in the verdict (not a failure)
+
+
 def flags(row):
     """What makes a converged result doubtful, as (kind, text) pairs.
 
@@ -500,7 +503,10 @@ def verdict(row):
     if status is None:
         return f"not run: {row['reason']}"
     if status == 0:
-        return ', '.join(['converged'] + [text for _, text in flags(row)])
+        notes = [text for _, text in flags(row)]
+        if row['max_phi'] is not None and row['max_phi'] > OVERSHOOT:
+            notes.append(f"overshoot: max |phi| {row['max_phi']:.4f} > {OVERSHOOT:g}")
+        return ', '.join(['converged'] + notes)
     if row['timed_out']:
         return f"failed: timed out after {row['timeout']:g} s"
     reason = row['reason'] or f"exit status {status} without a reason on stderr"
