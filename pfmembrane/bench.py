@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
-from . import paper
+from . import launch, paper
 
 # The paper's finest uniform grid (296,344 nodes) per eps, and the sharp interface.
 BRANCH = {'discocyte': 'oblate', 'dumbbell': 'prolate'}
@@ -265,13 +265,9 @@ def basis(args):
     results = []
     for n in (int(v) for v in args.nodes.split(',')):
         for ranks in (int(v) for v in args.np.split(',')):
-            cmd = ['mpiexec', '-n', str(ranks), sys.executable, '-m', 'pfmembrane.bench',
-                   'basis-one', '--nodes', str(n)]
+            cmd = launch.command(ranks, 'basis-one', '--nodes', str(n), module='pfmembrane.bench')
             print(' '.join(cmd), flush=True)
-            # Python's copy of the environment: MPI initialised in this process (under
-            # pytest, say) adds variables to the C one that make a child mpiexec fail.
-            proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=False,
-                                  env=dict(os.environ))
+            proc = launch.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
             if proc.returncode != 0:
                 raise SystemExit(f"pfmembrane.bench: exit status {proc.returncode} from "
                                  f"{' '.join(cmd)}")
@@ -327,8 +323,7 @@ def configurations(out, quick=False):
 
 def command(config, path):
     """The mpiexec command line of a run writing its checkpoint to `path`."""
-    cmd = ['mpiexec', '-n', str(config.ranks), sys.executable, '-m', 'pfmembrane',
-           '-options_file', SCENES[config.scene]]
+    cmd = launch.command(config.ranks, '-options_file', SCENES[config.scene])
     for key, value in config.options.items():
         cmd += [f"-pf_{key}", str(value)]
     if config.restart:
@@ -348,8 +343,7 @@ def run(config, out, force=False):
         return path, f"restart checkpoint {config.restart} missing"
     cmd = command(config, path)
     print(' '.join(cmd), flush=True)
-    proc = subprocess.run(cmd, stderr=subprocess.PIPE, text=True, check=False,
-                          env=dict(os.environ))
+    proc = launch.run(cmd, stderr=subprocess.PIPE, text=True, check=False)
     sys.stderr.write(proc.stderr)
     if os.path.exists(path):
         return path, None

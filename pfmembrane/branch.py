@@ -32,7 +32,7 @@ import time
 import h5py
 import numpy as np
 
-from . import checkpoint, sharp
+from . import checkpoint, launch, sharp
 from .initial import spheroid_axes
 from .nodes import nodal_spacing, uniform
 from .options import BRANCHES
@@ -169,13 +169,14 @@ def run(branch, vs, box, args):
                         parent=parent)
         if rerun or not reusable(path, expected):
             rerun = True
-            cmd = ['mpiexec', '-n', str(args.np), sys.executable, '-m', 'pfmembrane',
-                   '-options_file', scene, '-pf_eps', f"{args.eps:g}", '-pf_nodes', str(args.nodes),
-                   '-pf_box', f"{box[0]:g},{box[1]:g}", '-pf_reduced_volume', f"{v:g}",
-                   '-pf_output', path] + (['-pf_restart', parent] if parent else []) + args.options
+            cmd = launch.command(
+                args.np, '-options_file', scene, '-pf_eps', f"{args.eps:g}",
+                '-pf_nodes', str(args.nodes), '-pf_box', f"{box[0]:g},{box[1]:g}",
+                '-pf_reduced_volume', f"{v:g}", '-pf_output', path,
+                *(['-pf_restart', parent] if parent else []), *args.options)
             print(' '.join(cmd), flush=True)
             t0 = time.time()
-            done = subprocess.run(cmd, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+            done = launch.run(cmd, stderr=subprocess.PIPE, text=True)
             sys.stderr.write(done.stderr)
             step['wall'] = time.time() - t0
             step['status'] = done.returncode

@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from . import checkpoint
+from . import checkpoint, launch
 from .bench import machine, machine_line
 from .checkpoint import CheckpointError
 from .sequence import converged
@@ -198,9 +198,8 @@ def command(case, out, nprocs, parent_attrs=None):
     if case.eps_ratio:
         # repr: exactly the parent's float, so that a ratio of 1 sits on the limit itself.
         options += ['-pf_eps', repr(case.eps_ratio * float(parent_attrs['eps_min']))]
-    return ['mpiexec', '-n', str(nprocs), sys.executable, '-m', 'pfmembrane',
-            '-options_file', SCENE[case.branch], *GRID, *options,
-            '-pf_output', checkpoint_path(out, case.name)]
+    return launch.command(nprocs, '-options_file', SCENE[case.branch], *GRID, *options,
+                          '-pf_output', checkpoint_path(out, case.name))
 
 
 def reason_line(stderr):
@@ -231,11 +230,9 @@ def execute(argv, timeout):
         ``status`` (exit status), ``stdout``, ``stderr``, ``seconds``, ``timed_out``.
     """
     t0 = time.time()
-    # A session of its own: `stop` finds the ranks by it. The environment is given
-    # explicitly: once `boundary_phi` has imported PETSc, MPI_Init has added singleton
-    # variables to the process environment that make a child mpiexec fail at once.
+    # A session of its own: `stop` finds the ranks by it.
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ), start_new_session=True)
+                            env=launch.environment(), start_new_session=True)
     timed_out = False
     try:
         stdout, stderr = proc.communicate(timeout=timeout)

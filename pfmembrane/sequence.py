@@ -13,12 +13,12 @@ import argparse
 import glob
 import os
 import re
-import subprocess
 import sys
 import time
 
 import h5py
 
+from . import launch
 from .paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
 
 
@@ -61,11 +61,10 @@ def run(steps, scene, nprocs, force=False):
         if start is not None and not converged(start):
             print(f"{step}: not run, its start {start} did not converge", flush=True)
             continue
-        cmd = ['mpiexec', '-n', str(nprocs), sys.executable, '-m', 'pfmembrane',
-               '-options_file', scene, '-options_file', step]
+        cmd = launch.command(nprocs, '-options_file', scene, '-options_file', step)
         print(' '.join(cmd), flush=True)
         t0 = time.perf_counter()
-        status = subprocess.run(cmd, env=dict(os.environ)).returncode
+        status = launch.run(cmd).returncode
         walls[step] = time.perf_counter() - t0
         if status != 0:
             print(f"{step}: exit status {status}", flush=True)

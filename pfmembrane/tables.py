@@ -7,11 +7,10 @@ gives the energy, iterations, wall time and peak memory per rank.
 """
 import argparse
 import os
-import subprocess
-import sys
 
 import h5py
 
+from . import launch
 from .paper import FINEST, UNIFORM
 
 SCENE = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
@@ -20,11 +19,10 @@ SCENE = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 def run(branch, nodes, eps, nprocs, out, extra=()):
     path = os.path.join(out, f"{branch}_n{nodes}_eps{eps:g}.h5")
     if not os.path.exists(path):
-        cmd = ['mpiexec', '-n', str(nprocs), sys.executable, '-m', 'pfmembrane',
-               '-options_file', SCENE[branch], '-pf_nodes', str(nodes), '-pf_eps', str(eps),
-               '-pf_output', path, *extra]
+        cmd = launch.command(nprocs, '-options_file', SCENE[branch], '-pf_nodes', str(nodes),
+                             '-pf_eps', str(eps), '-pf_output', path, *extra)
         print(' '.join(cmd), flush=True)
-        subprocess.run(cmd, check=False, env=dict(os.environ))
+        launch.run(cmd, check=False)
     with h5py.File(path, 'r') as f:
         return dict(f.attrs)
 
