@@ -32,6 +32,7 @@ class Problem:
         self.grad_V = self._to_global(self.forms.grad_V)
         self.grad_M = self._to_global(self.forms.grad_M)
         self._K = None
+        self._pattern = None
         self.log = {name: PETSc.Log.Event('pf' + name) for name in
                     ('Functional', 'Gradient', 'Hessian', 'MatAssembly')}
 
@@ -92,7 +93,7 @@ class Problem:
         lay, mpi = self.layout, self.mpi
         size, rank = mpi.Get_size(), mpi.Get_rank()
         n, last = lay.nglobal, rank == size - 1
-        P = self.grid.hessian_pattern().tocoo()
+        P = self.grid.gram.pattern.tocoo()
         rows, cols = lay.local_numbers[P.row], lay.local_numbers[P.col]
         starts = np.array(mpi.allgather(lay.start) + [n])
         dest = np.searchsorted(starts, rows, side='right') - 1
@@ -139,8 +140,7 @@ class Problem:
             H = self.forms.hessian(self.local(x), sigma)
         with self.log['MatAssembly']:
             K.zeroEntries()
-            K.setValuesLocalCSR(H.indptr.astype(PETSc.IntType), H.indices.astype(PETSc.IntType),
-                                H.data, addv=PETSc.InsertMode.ADD)
+            K.setValuesLocalCSR(*self._hessian_pattern(), H.data, addv=PETSc.InsertMode.ADD)
             Cown = -np.column_stack([c.getArray(readonly=True) for c in C])
             m, nl = lay.nowned, lay.nlocal
             K.setValuesLocalCSR(np.arange(0, NCON * m + 1, NCON, dtype=PETSc.IntType),
@@ -154,6 +154,14 @@ class Problem:
                     K.setValuesLocal(nl + j, nl + j, diag, addv=PETSc.InsertMode.ADD)
             K.assemble()
         return K
+
+    def _hessian_pattern(self):
+        """Row pointers and columns of every local Hessian (one pattern per grid),
+        in PETSc's integer type, converted once."""
+        if self._pattern is None:
+            P = self.grid.gram.pattern
+            self._pattern = (P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType))
+        return self._pattern
 
     def shift_hessian(self, delta):
         """Add delta to the diagonal of the Hessian block of the bordered matrix."""
