@@ -376,12 +376,21 @@ def test_write_into_read_only_directory(tmp_path):
 
 MPI_SCRIPT = """
 import sys
+from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 from pfmembrane import checkpoint
 
 comm = MPI.COMM_WORLD
 rank = comm.Get_rank()
+
+
+def say(line):
+    # A file per rank: mpiexec may splice the ranks' stdout mid-line.
+    with open(Path(__file__).with_name(f"rank{rank}.log"), "a") as log:
+        log.write(line + "\\n")
+
+
 task, path = sys.argv[1], sys.argv[2]
 try:
     if task == "write":
@@ -394,14 +403,13 @@ try:
                      if k not in ("nodes", "phi")}
         checkpoint.write(path, nodes, phi, attrs, comm=comm)
         ckpt = checkpoint.read(path, comm=comm)
-        print(f"rank {rank} read {ckpt.phi.sum()!r} {ckpt.nodes.sum()!r}",
-              flush=True)
+        say(f"rank {rank} read {ckpt.phi.sum()!r} {ckpt.nodes.sum()!r}")
     else:
         checkpoint.read(path, comm=comm)
 except checkpoint.CheckpointError as exc:
-    print(f"rank {rank} raised: {exc}", flush=True)
+    say(f"rank {rank} raised: {exc}")
     raise
-print(f"rank {rank} done", flush=True)
+say(f"rank {rank} done")
 """
 
 
@@ -421,7 +429,7 @@ def run_mpi(tmp_path, *args):
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
         start_new_session=True)
     try:
-        out, err = proc.communicate(timeout=TIMEOUT)
+        _, err = proc.communicate(timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
         # mpiexec takes its ranks down on SIGTERM; they run in process
         # groups of their own, out of reach of a signal to its group.
@@ -432,7 +440,9 @@ def run_mpi(tmp_path, *args):
             os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
         pytest.fail(f"mpiexec {' '.join(map(str, args))} hung")
-    return proc.returncode, out.splitlines(), err
+    lines = [line for log in sorted(tmp_path.glob("rank*.log"))
+             for line in log.read_text().splitlines()]
+    return proc.returncode, lines, err
 
 
 def test_mpi_write_then_serial_read(tmp_path):
