@@ -18,36 +18,42 @@ from .nodes import dirichlet_mask, nodal_spacing, spacing_peak
 RASTER = 0.5  # raster spacing / smallest nodal spacing of the old grid
 
 
-def gradient_raster(comm, nodes, phi, box, beta, cutoff):
-    """|grad phi_h| on a regular raster of the box, and the raster's axes.
+def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
+    """|grad phi_h| on a regular raster of the box (of its half z >= `plane`
+    for a half-box solve), and the raster's axes.
 
     Collective (`comm` is an mpi4py communicator): each rank evaluates a
     share of the raster rows. `beta` is the locality phi_h was solved with.
     """
-    step = RASTER * spacing_peak(nodal_spacing(nodes))
+    step = RASTER * spacing_peak(nodal_spacing(nodes, plane=plane))
+    z0 = plane or 0.0
     r = np.linspace(0.0, box[0], int(np.ceil(box[0] / step)) + 1)
-    z = np.linspace(0.0, box[1], int(np.ceil(box[1] / step)) + 1)
+    z = np.linspace(z0, box[1], int(np.ceil((box[1] - z0) / step)) + 1)
     mine = np.array_split(np.arange(len(z)), comm.Get_size())[comm.Get_rank()]
     R, Z = np.meshgrid(r, z[mine], indexing='xy')
     points = np.column_stack([R.ravel(), Z.ravel()])
-    basis = folded_basis(points, nodes, beta, cutoff, derivatives=1)
+    basis = folded_basis(points, nodes, beta, cutoff, derivatives=1, plane=plane)
     grad = np.column_stack([maxent.interpolate(basis._replace(p=basis.dp[:, i]), phi)
                             for i in range(2)])
     rows = comm.allgather(np.hypot(grad[:, 0], grad[:, 1]).reshape(len(mine), len(r)))
     return r, z, np.vstack(rows)
 
 
-def relocate(comm, nodes, phi, box, beta, cutoff, f):
+def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None):
     """CVT nodes for rho = 1 + f |grad phi_h| and phi_h transferred to them.
 
     Collective (`comm` is an mpi4py communicator). `phi` holds the values at
     every node, Dirichlet nodes included, and `beta` the locality of its
-    basis. Returns (nodes, phi, info) with the same node count; the new
-    Dirichlet nodes hold -1 exactly.
+    basis. With a mirror `plane` the nodes fill the half box z >= plane and
+    the tessellation is of that half, whose clipped cells are the mirror's.
+    Returns (nodes, phi, info) with the same node count; the new Dirichlet
+    nodes hold -1 exactly.
     """
     t0 = time.perf_counter()
-    r, z, grad = gradient_raster(comm, nodes, phi, box, beta, cutoff)
+    r, z, grad = gradient_raster(comm, nodes, phi, box, beta, cutoff, plane)
     t_raster = time.perf_counter() - t0
+    # The tessellation works in [0, Rb] x [0, Zb - z0].
+    shift = np.array([0.0, z[0]])
 
     def density(points):
         coords = [points[:, 1] / (z[1] - z[0]), points[:, 0] / (r[1] - r[0])]
@@ -55,12 +61,14 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f):
 
     moved = None
     if comm.Get_rank() == 0:
-        moved = cvt.lloyd(nodes, box, density)
+        moved = cvt.lloyd(nodes - shift, (box[0], box[1] - z[0]), density)
     new, iterations, movement = comm.bcast(moved, root=0)
-    basis = folded_basis(new, nodes, beta, cutoff, derivatives=0)
+    new = new + shift
+    basis = folded_basis(new, nodes, beta, cutoff, derivatives=0, plane=plane)
     new_phi = maxent.interpolate(basis, phi)
     new_phi[dirichlet_mask(new, box)] = -1.0
     info = dict(iterations=iterations, movement=movement, raster=grad.shape,
                 time_raster=t_raster, time=time.perf_counter() - t0,
-                h_min=(spacing_peak(nodal_spacing(nodes)), spacing_peak(nodal_spacing(new))))
+                h_min=(spacing_peak(nodal_spacing(nodes, plane=plane)),
+                       spacing_peak(nodal_spacing(new, plane=plane))))
     return new, new_phi, info

@@ -36,16 +36,22 @@ def start_nodes(p, comm):
     start: the restart checkpoint's, or with -pf_adapt its nodes relocated and
     its phi transferred to them."""
     if not p.restart:
-        return nodesets.uniform(p.box, p.nodes), None, None
+        return nodesets.uniform(p.box, p.nodes, half=p.symmetric), None, None
     ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
-    nu = np.array([ck.attrs.get(k, 0.0) for k in ('nu_area', 'nu_volume', 'nu_moment')])
+    if ck.symmetric != p.symmetric:
+        raise options.UsageError(
+            f"-pf_restart {p.restart} holds a {'half' if ck.symmetric else 'full'}-box solution: "
+            f"{'add' if ck.symmetric else 'remove'} -pf_symmetric to continue it")
+    names = ('nu_area', 'nu_volume', 'nu_moment')[:2 if p.symmetric else 3]
+    nu = np.array([ck.attrs.get(k, 0.0) for k in names])
     if not p.adapt:
         return ck.nodes, ck.phi, nu
     stage = PETSc.Log.Stage('pfAdapt')
     stage.push()
-    beta = locality(ck.nodes, ck.attrs['gamma'], int(ck.attrs.get('spacing_smoothing', 0)))
+    beta = locality(ck.nodes, ck.attrs['gamma'], int(ck.attrs.get('spacing_smoothing', 0)),
+                    p.plane)
     xy, phi, info = adapt.relocate(comm.tompi4py(), ck.nodes, ck.phi, p.box, beta,
-                                   ck.attrs.get('cutoff', p.cutoff), p.adapt)
+                                   ck.attrs.get('cutoff', p.cutoff), p.adapt, p.plane)
     stage.pop()
     PETSc.Sys.Print(f"adapt: CVT f={p.adapt:g} of {p.restart}: {info['iterations']} Lloyd steps "
                     f"(movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
@@ -63,7 +69,7 @@ def sharp_comparison(comm, xy, phi, attrs):
     result = {}
     if comm.getRank() == 0:
         try:
-            c = limit.compare(checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs))
+            c = limit.compare(checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded())
             result = {'sharp_energy': c['energy_sharp'], 'sharp_rel_error': c['rel_error'],
                       'sharp_dist_max': c['dist_max'], 'sharp_dist_mean': c['dist_mean']}
         except ValueError as e:
@@ -93,13 +99,15 @@ def run(comm):
     size = comm.getSize()
     PETSc.Sys.Print(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
                     f"v={p.reduced_volume:g} box={p.box[0]:g}x{p.box[1]:g} gamma={p.gamma:g} "
-                    f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}")
+                    f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}"
+                    f"{' half box (mirror z=' + format(p.zc, 'g') + ')' if p.symmetric else ''}")
 
     t0 = time.perf_counter()
     xy, phi0, nu0 = start_nodes(p, comm)
     basis_stage = PETSc.Log.Stage('pfBasis')
     basis_stage.push()
-    grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree, p.spacing_smoothing)
+    grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree, p.spacing_smoothing,
+                p.plane)
     basis_stage.pop()
     eps_min = resolved_eps(grid)
     under = p.eps < eps_min
@@ -114,7 +122,8 @@ def run(comm):
     basis_stage.pop()
     t_setup = time.perf_counter() - t0
 
-    problem = Problem(grid, p.eps, p.k, p.c0, (p.area, p.volume, 0.0), p.zc)
+    targets = (p.area, p.volume) if p.symmetric else (p.area, p.volume, 0.0)
+    problem = Problem(grid, p.eps, p.k, p.c0, targets, p.zc)
     x = problem.create_vec()
     lay = grid.layout
     own = lay.order[lay.start:lay.start + lay.nowned]
@@ -164,7 +173,8 @@ def run(comm):
         phi_nodes[lay.order] = values
     attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=p.eps,
                  k=p.k, c0=p.c0, gamma=p.gamma, nu_area=solver.nu[0], nu_volume=solver.nu[1],
-                 nu_moment=solver.nu[2], converged=int(converged), wall_time=wall,
+                 nu_moment=solver.nu[2] if solver.ncon == 3 else 0.0, symmetric=int(p.symmetric),
+                 converged=int(converged), wall_time=wall,
                  n_procs=size, cutoff=p.cutoff, quad_degree=p.quad_degree,
                  spacing_smoothing=p.spacing_smoothing,
                  radius=p.radius, reduced_volume=p.reduced_volume, branch=p.branch,

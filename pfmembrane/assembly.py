@@ -10,14 +10,14 @@ from petsc4py import PETSc
 
 from .functionals import Functionals
 
-NCON = 3  # area, volume, moment
-
 
 class Problem:
     """Energy and constraints of one scene on one grid, on distributed Vecs.
 
-    Collective. `targets` = (A0, V0, M0). The unknowns are the free nodal
-    values (Dirichlet nodes are eliminated), in the layout's global numbering.
+    Collective. `targets` = (A0, V0, M0), or (A0, V0) on a half-box grid,
+    whose mirror plane makes the moment vanish. The unknowns are the free
+    nodal values (Dirichlet nodes are eliminated), in the layout's global
+    numbering.
     """
 
     def __init__(self, grid, eps, k, c0, targets, zc):
@@ -27,10 +27,13 @@ class Problem:
         self.eps = eps
         self.forms = Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
         self.targets = np.asarray(targets, dtype=float)
+        self.ncon = len(self.targets)
+        if self.ncon != (2 if grid.plane is not None else 3):
+            raise ValueError("a half-box grid takes targets (A0, V0), a full box (A0, V0, M0)")
         self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
         self._ghosted = self.layout.create_ghosted()
         self.grad_V = self._to_global(self.forms.grad_V)
-        self.grad_M = self._to_global(self.forms.grad_M)
+        self.grad_M = self._to_global(self.forms.grad_M) if self.ncon == 3 else None
         self._K = None
         self._pattern = None
         self.log = {name: PETSc.Log.Event('pf' + name) for name in
@@ -66,7 +69,14 @@ class Problem:
         """Global (E, A, V, M) at x."""
         with self.log['Functional']:
             v = self._sum(self.forms.values(self.local(x)))
+        return self._full_box(v)
+
+    def _full_box(self, v):
+        """(E, A, V, M) from the summed parts: V gets its |Omega| / 2 and, on a
+        half box, M is the mirror's zero, not the half's moment."""
         v[2] += 0.5 * self.volume_box
+        if self.ncon == 2:
+            v[3] = 0.0
         return v
 
     def gradients(self, x, gE, gA):
@@ -76,21 +86,20 @@ class Problem:
             self._to_global(lE, gE)
             self._to_global(lA, gA)
             v = self._sum(vals)
-        v[2] += 0.5 * self.volume_box
-        return v
+        return self._full_box(v)
 
     # -- bordered matrix -------------------------------------------------------
     def bordered_matrix(self):
         """The AIJ matrix [[H, -C^T], [-C, D]] with exact preallocation (built once).
 
-        Collective. The last rank owns the NCON multiplier rows.
+        Collective. The last rank owns the ncon multiplier rows.
         """
         if self._K is None:
             self._K = self._create_bordered()
         return self._K
 
     def _create_bordered(self):
-        lay, mpi = self.layout, self.mpi
+        lay, mpi, ncon = self.layout, self.mpi, self.ncon
         size, rank = mpi.Get_size(), mpi.Get_rank()
         n, last = lay.nglobal, rank == size - 1
         P = self.grid.gram.pattern.tocoo()
@@ -99,28 +108,28 @@ class Problem:
         dest = np.searchsorted(starts, rows, side='right') - 1
         # Rows touched here but owned elsewhere: send their pattern to the owner.
         order = np.argsort(dest, kind='stable')
-        keys = (rows * (n + NCON) + cols)[order]
+        keys = (rows * (n + ncon) + cols)[order]
         counts = np.bincount(dest, minlength=size)
         recv_counts = np.array(mpi.alltoall(counts.tolist()))
         recv = np.empty(recv_counts.sum(), dtype=np.int64)
         mpi.Alltoallv([keys.astype(np.int64), counts], [recv, recv_counts])
         keys = np.unique(recv)
-        r, c = keys // (n + NCON) - lay.start, keys % (n + NCON)
-        nrows = lay.nowned + (NCON if last else 0)
-        border = np.arange(n, n + NCON)
+        r, c = keys // (n + ncon) - lay.start, keys % (n + ncon)
+        nrows = lay.nowned + (ncon if last else 0)
+        border = np.arange(n, n + ncon)
         counts_r = np.bincount(r, minlength=lay.nowned)
-        # Each owned row: its (sorted) Hessian columns, then the NCON border columns.
-        indptr = np.concatenate([[0], np.cumsum(counts_r + NCON)])
+        # Each owned row: its (sorted) Hessian columns, then the ncon border columns.
+        indptr = np.concatenate([[0], np.cumsum(counts_r + ncon)])
         indices = np.empty(indptr[-1], dtype=np.int64)
-        indices[np.arange(len(c)) + NCON * r] = c
-        for j in range(NCON):
-            indices[indptr[1:] - NCON + j] = n + j
+        indices[np.arange(len(c)) + ncon * r] = c
+        for j in range(ncon):
+            indices[indptr[1:] - ncon + j] = n + j
         if last:  # dense multiplier rows: every unknown and the diagonal block
-            dense = np.arange(n + NCON)
-            indptr = np.concatenate([indptr, indptr[-1] + (n + NCON) * np.arange(1, NCON + 1)])
-            indices = np.concatenate([indices] + [dense] * NCON)
+            dense = np.arange(n + ncon)
+            indptr = np.concatenate([indptr, indptr[-1] + (n + ncon) * np.arange(1, ncon + 1)])
+            indices = np.concatenate([indices] + [dense] * ncon)
         K = PETSc.Mat().create(comm=self.comm)
-        K.setSizes(((nrows, n + NCON), (nrows, n + NCON)))
+        K.setSizes(((nrows, n + ncon), (nrows, n + ncon)))
         K.setType(PETSc.Mat.Type.AIJ)
         K.setPreallocationCSR((indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType)))
         K.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
@@ -132,10 +141,10 @@ class Problem:
     def assemble_bordered(self, x, sigma, C, diag):
         """K = [[Hess E - sigma Hess A, -C^T], [-C, diag I]] at x.
 
-        Collective. C is the list of NCON constraint-gradient Vecs.
+        Collective. C is the list of ncon constraint-gradient Vecs.
         """
         K = self.bordered_matrix()
-        lay = self.layout
+        lay, ncon = self.layout, self.ncon
         with self.log['Hessian']:
             H = self.forms.hessian(self.local(x), sigma)
         with self.log['MatAssembly']:
@@ -143,14 +152,14 @@ class Problem:
             K.setValuesLocalCSR(*self._hessian_pattern(), H.data, addv=PETSc.InsertMode.ADD)
             Cown = -np.column_stack([c.getArray(readonly=True) for c in C])
             m, nl = lay.nowned, lay.nlocal
-            K.setValuesLocalCSR(np.arange(0, NCON * m + 1, NCON, dtype=PETSc.IntType),
-                                np.tile(np.arange(nl, nl + NCON), m).astype(PETSc.IntType),
+            K.setValuesLocalCSR(np.arange(0, ncon * m + 1, ncon, dtype=PETSc.IntType),
+                                np.tile(np.arange(nl, nl + ncon), m).astype(PETSc.IntType),
                                 Cown.ravel(), addv=PETSc.InsertMode.ADD)
             own = np.arange(m, dtype=PETSc.IntType)
-            for j in range(NCON):
+            for j in range(ncon):
                 K.setValuesLocal([nl + j], own, Cown[:, j], addv=PETSc.InsertMode.ADD)
             if self.comm.getRank() == self.comm.getSize() - 1:
-                for j in range(NCON):
+                for j in range(ncon):
                     K.setValuesLocal(nl + j, nl + j, diag, addv=PETSc.InsertMode.ADD)
             K.assemble()
         return K

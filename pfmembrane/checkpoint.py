@@ -22,6 +22,8 @@ import h5py
 import numpy as np
 import scipy.spatial
 
+from .nodes import unfold
+
 __all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
            "read", "write_xdmf"]
 
@@ -67,6 +69,19 @@ class Checkpoint:
         """(Rb, Zb) of the computational box."""
         rb, zb = self.attrs["box"]
         return float(rb), float(zb)
+
+    @property
+    def symmetric(self):
+        """Whether the nodes fill the half box z >= Zb / 2 of a mirror-symmetric solve."""
+        return bool(self.attrs.get("symmetric", 0))
+
+    def unfolded(self):
+        """This state on the full box: a half-box solution with its mirror
+        image, for plots and comparisons; a full-box one unchanged."""
+        if not self.symmetric:
+            return self
+        nodes, phi = unfold(self.nodes, self.phi, 0.5 * self.box[1])
+        return Checkpoint(nodes, phi, {**self.attrs, "symmetric": 0}, self.datasets)
 
 
 def write(path, nodes, phi, attrs, comm=None, datasets=None):

@@ -33,20 +33,20 @@ class Operators(NamedTuple):
     z: np.ndarray
 
 
-def locality(nodes, gamma, smoothing):
+def locality(nodes, gamma, smoothing, plane=None):
     """beta_a = gamma / h_a^2 with the smoothed nodal spacing (`nodes.nodal_spacing`)."""
-    return gamma / nodal_spacing(nodes, smoothing=smoothing) ** 2
+    return gamma / nodal_spacing(nodes, smoothing=smoothing, plane=plane) ** 2
 
 
-def folded_basis(points, nodes, beta, cutoff, derivatives):
+def folded_basis(points, nodes, beta, cutoff, derivatives, plane=None):
     """Max-ent basis at `points` whose columns are the nodes themselves.
 
-    Not collective. Axis mirrors (see `nodes.with_axis_mirrors`) enter the
-    sums and each appears under its original's index, so a row may list a
-    node twice; sparse products and `maxent.interpolate` add the two.
+    Not collective. Mirrors (see `nodes.with_mirrors`) enter the sums and
+    each appears under its original's index, so a row may list a node
+    several times; sparse products and `maxent.interpolate` add them.
     """
     radius = maxent.support_radius(beta, cutoff)
-    aug, beta_aug, owner = nodesets.with_axis_mirrors(nodes, beta, radius)
+    aug, beta_aug, owner = nodesets.with_mirrors(nodes, beta, radius, plane)
     basis = maxent.local_maxent(points, aug, beta_aug, cutoff, derivatives=derivatives)
     return basis._replace(indices=owner[basis.indices])
 
@@ -57,25 +57,32 @@ class Grid:
     Collective. Parameters are plain values: `box` = (Rb, Zb), `gamma` the
     locality, `cutoff` the support cut-off exp(-beta_a d^2) >= cutoff, `degree`
     the Gauss rule on the Delaunay triangles, `smoothing` the passes over the
-    nodal spacing behind beta_a. `h` is the unsmoothed spacing.
+    nodal spacing behind beta_a. `h` is the unsmoothed spacing. With a mirror
+    `plane` the nodes fill the half box z >= plane, phi is even across it and
+    the quadrature weights count both halves, so integrals are full-box ones.
     """
 
-    def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0):
+    def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0,
+                 plane=None):
         self.comm, self.nodes, self.box = comm, nodes, tuple(box)
         self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
-        self.h = nodal_spacing(nodes)
-        self.beta = locality(nodes, gamma, smoothing)
+        self.plane = plane
+        self.h = nodal_spacing(nodes, plane=plane)
+        self.beta = locality(nodes, gamma, smoothing, plane)
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)
         points, weights = quadrature.rule(nodes, self.layout.my_triangles, degree)
+        if plane is not None:
+            weights = 2.0 * weights
         self.per_cell = len(points) // max(len(self.layout.my_triangles), 1)
         self.nquad = comm.tompi4py().allreduce(len(points))
         self.ops = self._operators(points, weights)
         self._gram = None
 
     def _operators(self, points, weights):
-        basis = folded_basis(points, self.nodes, self.beta, self.cutoff, derivatives=2)
+        basis = folded_basis(points, self.nodes, self.beta, self.cutoff, derivatives=2,
+                             plane=self.plane)
         rows = np.repeat(np.arange(len(points)), np.diff(basis.indptr))
         node = basis.indices
         r = points[:, 0]

@@ -94,7 +94,7 @@ def load(paths, index):
     found = {}
     for path in paths:
         try:
-            found[path] = checkpoint.read(path)
+            found[path] = checkpoint.read(path).unfolded()
         except checkpoint.CheckpointError as e:
             index.note(str(e))
     return found

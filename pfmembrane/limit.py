@@ -432,7 +432,7 @@ def main(argv=None):
     args = _parser().parse_args(argv)
     matplotlib.use("Agg")
     try:
-        ckpts = [checkpoint.read(path) for path in args.checkpoints]
+        ckpts = [checkpoint.read(path).unfolded() for path in args.checkpoints]
         rows = [_row(path, ckpt, args.samples)
                 for path, ckpt in zip(args.checkpoints, ckpts)]
     except (checkpoint.CheckpointError, ValueError, RuntimeError) as exc:

@@ -1,4 +1,7 @@
-"""Node sets of the (r, z) box: uniform grids, boundary classes, axis mirrors.
+"""Node sets of the (r, z) box: uniform grids, boundary classes, mirrors.
+
+Two mirrors make folded bases: the axis r = 0 always, and for up-down
+symmetric scenes solved on the half box z >= Zb / 2 the plane z = Zb / 2.
 
 Pure numpy/scipy; every rank builds the same node set deterministically.
 """
@@ -11,14 +14,18 @@ from scipy.spatial import Delaunay
 AXIS, OUTER, BOTTOM, TOP = 1, 2, 4, 8
 
 
-def _hex_grid(box, h):
+def _hex_grid(box, h, symmetric=False):
     """Edge nodes at spacing ~h plus a staggered (hexagonal) lattice whose even
     rows start on the axis: mirrored across r = 0 it stays a regular lattice, so
-    the axis adds no irregularity to the basis (nor error to phi_r / r)."""
+    the axis adds no irregularity to the basis (nor error to phi_r / r).
+    `symmetric` rounds the row count to a multiple of 4: an even row, with
+    its node on the axis, then lies on z = Zb / 2 and the lattice is its own
+    mirror image across that plane (the paper's 6124 and 12271 nodes are)."""
     Rb, Zb = box
     nr = max(int(round(Rb / h)), 2)
     r_edge = np.linspace(0.0, Rb, nr + 1)
-    rows = max(int(round(Zb / (h * np.sqrt(3.0) / 2.0))), 2)
+    rows = Zb / (h * np.sqrt(3.0) / 2.0)
+    rows = max(4 * int(round(rows / 4)) if symmetric else int(round(rows)), 2)
     dz = Zb / rows
     z_rows = dz * np.arange(1, rows)
     parts = [np.column_stack([r_edge, np.zeros_like(r_edge)]),
@@ -30,21 +37,27 @@ def _hex_grid(box, h):
     return np.vstack(parts)
 
 
-def uniform(box, n):
+def uniform(box, n, half=False):
     """Near-uniform node set of about `n` nodes with nodes on all four edges.
 
     Not collective. The lattice spacing is found by bisection on the actual
     count, so the result is deterministic and within a few nodes of `n`.
+    With `half`, the nodes with z >= Zb / 2 of the n-node lattice that is
+    symmetric across z = Zb / 2 (about n / 2 nodes, a row on the plane).
     """
     Rb, Zb = box
     lo, hi = 1e-4 * min(Rb, Zb), 0.5 * min(Rb, Zb)
+    count = lambda h: len(_hex_grid(box, h, symmetric=half))  # noqa: E731
     for _ in range(60):
         h = np.sqrt(lo * hi)
-        if len(_hex_grid(box, h)) > n:
+        if count(h) > n:
             lo = h
         else:
             hi = h
-    return _hex_grid(box, hi if abs(len(_hex_grid(box, hi)) - n) <= abs(len(_hex_grid(box, lo)) - n) else lo)
+    nodes = _hex_grid(box, hi if abs(count(hi) - n) <= abs(count(lo) - n) else lo, symmetric=half)
+    if half:
+        nodes = nodes[nodes[:, 1] >= 0.5 * Zb * (1.0 - 1e-12)]
+    return nodes
 
 
 def edge_labels(nodes, box, tol=1e-12):
@@ -61,29 +74,47 @@ def dirichlet_mask(nodes, box):
     return (edge_labels(nodes, box) & (OUTER | BOTTOM | TOP)) != 0
 
 
-def with_axis_mirrors(nodes, beta, radius):
-    """Append the reflections r -> -r of the nodes within `radius` of the axis.
+def with_mirrors(nodes, beta, radius, plane=None):
+    """Append the reflections r -> -r of the nodes within `radius` of the axis
+    and, given a `plane`, the reflections z -> 2 plane - z of those and of the
+    axis mirrors within `radius` of z = plane.
 
     A mirror carries its original's beta and, when the caller adds each
     mirror's basis column to its original's, the approximation space is exactly
     even in r: phi_r(0, z) = 0 for every nodal vector and phi_r / r stays
-    bounded (it tends to phi_rr), without extra unknowns. Nodes on the axis are
-    their own mirrors and are not duplicated. Returns the augmented nodes, betas
-    and, for every augmented node, the index of the original it belongs to.
+    bounded (it tends to phi_rr), without extra unknowns; likewise
+    phi_z = 0 on the plane. Nodes on a mirror are their own images and are
+    not duplicated. Returns the augmented nodes, betas and, for every
+    augmented node, the index of the original it belongs to.
     """
+    radius = np.broadcast_to(radius, beta.shape)
+    owner = np.arange(len(nodes))
     near = np.flatnonzero((nodes[:, 0] > 0.0) & (nodes[:, 0] < radius))
-    mirrors = nodes[near] * np.array([-1.0, 1.0])
-    owner = np.concatenate([np.arange(len(nodes)), near])
-    return np.vstack([nodes, mirrors]), np.concatenate([beta, beta[near]]), owner
+    owner = np.concatenate([owner, near])
+    aug = np.vstack([nodes, nodes[near] * np.array([-1.0, 1.0])])
+    if plane is not None:
+        above = aug[:, 1] - plane
+        near = np.flatnonzero((above > 0.0) & (above < radius[owner]))
+        owner = np.concatenate([owner, owner[near]])
+        aug = np.vstack([aug, np.column_stack([aug[near, 0], 2.0 * plane - aug[near, 1]])])
+    return aug, beta[owner], owner
 
 
-def nodal_spacing(nodes, axis=True, smoothing=0):
+def unfold(nodes, phi, plane):
+    """The full-box node set and nodal values of a half-box solution: the
+    nodes above `plane` reflected below it."""
+    above = nodes[:, 1] > plane
+    mirrored = np.column_stack([nodes[above, 0], 2.0 * plane - nodes[above, 1]])
+    return np.vstack([nodes, mirrored]), np.concatenate([phi, phi[above]])
+
+
+def nodal_spacing(nodes, axis=True, smoothing=0, plane=None):
     """h_a: mean distance from each node to its Delaunay (Voronoi) neighbours.
 
-    With `axis`, the neighbours are found with the nodes reflected across r = 0,
-    as the basis sees them: otherwise nodes on the axis, missing half their
-    neighbours, get a different beta_a from their neighbours and the basis
-    (and phi_rr) loses accuracy next to the axis.
+    With `axis`, the neighbours are found with the nodes reflected across r = 0
+    (and across z = `plane` when given), as the basis sees them: otherwise
+    nodes on a mirror, missing half their neighbours, get a different beta_a
+    from their neighbours and the basis (and phi_rr) loses accuracy there.
 
     `smoothing` passes h_a <- (h_a + mean of the neighbours' h) / 2 remove the
     node-to-node scatter of h on irregular (CVT) node sets, which otherwise
@@ -93,8 +124,7 @@ def nodal_spacing(nodes, axis=True, smoothing=0):
     passes change nothing away from the box edges.
     """
     if axis:
-        off = nodes[:, 0] > 0.0
-        full = np.vstack([nodes, nodes[off] * np.array([-1.0, 1.0])])
+        full = with_mirrors(nodes, np.zeros(len(nodes)), np.inf, plane)[0]
         return nodal_spacing(full, axis=False, smoothing=smoothing)[:len(nodes)]
     indptr, neighbours = Delaunay(nodes).vertex_neighbor_vertices
     count = np.diff(indptr)

@@ -35,6 +35,7 @@ class Params:
     box: tuple = (1.5, 2.0)
     branch: str = 'oblate'
     nodes: int = 6124
+    symmetric: bool = False
     gamma: float = 0.8
     restart: str = ''
     adapt: float = 0.0
@@ -62,6 +63,11 @@ class Params:
     def zc(self):
         return 0.5 * self.box[1]
 
+    @property
+    def plane(self):
+        """z of the mirror plane of a half-box solve, None on the full box."""
+        return self.zc if self.symmetric else None
+
 
 HELP = {
     'eps': 'regularization width eps',
@@ -71,7 +77,8 @@ HELP = {
     'reduced_volume': 'reduced volume v: V0 = v (4/3) pi R^3, 0 < v <= 1',
     'box': 'Rb,Zb of the (r,z) box',
     'branch': 'family of the initial guess: ' + ' | '.join(BRANCHES),
-    'nodes': 'approximate node count of the uniform grid',
+    'nodes': 'approximate node count of the uniform grid (of the full box)',
+    'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, no moment constraint',
     'gamma': 'max-ent locality gamma (beta_a = gamma / h_a^2)',
     'restart': 'checkpoint to start from (its nodes and phi)',
     'adapt': 'CVT density amplification f: adapt the nodes to the start phi (0: no)',

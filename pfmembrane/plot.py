@@ -235,7 +235,7 @@ def main(argv=None):
     args = _parser().parse_args(argv)
     matplotlib.use("Agg")
     try:
-        ckpts = [checkpoint.read(path) for path in args.checkpoints]
+        ckpts = [checkpoint.read(path).unfolded() for path in args.checkpoints]
     except checkpoint.CheckpointError as exc:
         print(f"pfmembrane.plot: error: {exc}", file=sys.stderr)
         return 1

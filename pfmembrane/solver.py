@@ -1,6 +1,7 @@
 """Stage 1: augmented Lagrangian; stage 2: Newton on the bordered (Phi, nu) system.
 
-Convention (paper and MODEL.md): L = E - nu . (c - c0), c = (A, V, M);
+Convention (paper and MODEL.md): L = E - nu . (c - c0), c = (A, V, M), or
+c = (A, V) on a half box;
 the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
 tension, nu_V the pressure difference.
 """
@@ -9,7 +10,6 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from .assembly import NCON
 from .faults import poll
 from .options import stage1_penalty
 
@@ -37,9 +37,11 @@ class Solver:
         self.P, self.p = problem, params
         self.print = print_fn
         self.gE, self.gA = problem.create_vec(), problem.create_vec()
-        self.C = [self.gA, problem.grad_V, problem.grad_M]
-        self.scale = np.array([params.area, params.volume, params.volume * params.radius])
-        self.nu = np.zeros(NCON)
+        self.ncon = problem.ncon
+        self.C = [self.gA, problem.grad_V, problem.grad_M][:self.ncon]
+        self.scale = np.array([params.area, params.volume,
+                               params.volume * params.radius])[:self.ncon]
+        self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0
         self.mpi = problem.mpi
@@ -50,7 +52,7 @@ class Solver:
         """Values (E, A, V, M), constraint residual c - c0; fills gE, gA."""
         poll(self.mpi)  # every iteration of both stages passes here: leave together on a signal
         vals = self.P.gradients(x, self.gE, self.gA)
-        return vals, vals[1:] - self.P.targets
+        return vals, vals[1:1 + self.ncon] - self.P.targets
 
     def combine(self, out, lam):
         """out = gE - sum lam_i C_i (the gradient of a Lagrangian)."""
@@ -72,8 +74,9 @@ class Solver:
     def row(self, stage, it, vals, res, gnorm):
         if self.p.monitor:
             rel = np.abs(res) / self.scale
+            moment = f"rM {rel[2]:.2e} " if self.ncon == 3 else ''
             self.print(f"  {stage} {it:3d} E {vals[0]:.10f} |g| {gnorm:.3e} "
-                       f"rA {rel[0]:.2e} rV {rel[1]:.2e} rM {rel[2]:.2e} "
+                       f"rA {rel[0]:.2e} rV {rel[1]:.2e} {moment}"
                        f"nuA {self.nu[0]:.5g} nuV {self.nu[1]:.5g}")
 
     # -- stage 1 ---------------------------------------------------------------
@@ -110,7 +113,7 @@ class Solver:
 
     def _newton(self, x, mu, gtol, max_it=50):
         """Newton with line search on L_A; the step solves the bordered system
-        [[H, -C^T], [-C, -mu I]] whose inertia has exactly NCON negative
+        [[H, -C^T], [-C, -mu I]] whose inertia has exactly ncon negative
         eigenvalues iff Hess L_A = H + C^T C / mu is positive definite."""
         P = self.P
         ksp = self._stage1_ksp()
@@ -145,7 +148,7 @@ class Solver:
                 nneg = self._negative_pivots(ksp)
                 d.setArray(sol.getArray(readonly=True)[:nl])
                 slope = g.dot(d)
-                if (nneg is None or nneg == NCON) and slope < 0:
+                if (nneg is None or nneg == self.ncon) and slope < 0:
                     break
                 shift = SHIFT_GROWTH * applied if applied else 0.1 * scale
                 P.shift_hessian(shift - applied)
@@ -156,7 +159,7 @@ class Solver:
                 x.copy(xt)
                 xt.axpy(t, d)
                 v2 = P.values(xt)
-                r2 = v2[1:] - P.targets
+                r2 = v2[1:1 + self.ncon] - P.targets
                 if self._augmented(v2, r2, mu) <= La + 1e-4 * t * slope or t < 1e-8:
                     break
                 t *= 0.5

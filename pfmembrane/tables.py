@@ -1,6 +1,6 @@
 """Regenerate the paper's uniform-grid tables (Tables 1 and 2) under runs/.
 
-    python -m pfmembrane.tables [--np 2] [--out runs/tables] [--nodes 6124,24597]
+    python -m pfmembrane.tables [--np 2] [--out runs/tables] [--nodes 6124,12271,24597]
 
 Each entry is one `mpiexec -n NP python -m pfmembrane` run; its checkpoint
 gives the energy, iterations, wall time and peak memory per rank.
@@ -31,7 +31,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--np', type=int, default=2)
     ap.add_argument('--out', default='runs/tables')
-    ap.add_argument('--nodes', default='6124,24597')
+    ap.add_argument('--nodes', default='6124,12271,24597')
     ap.add_argument('--branches', default='oblate,prolate')
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)

@@ -56,6 +56,8 @@ BAD_INPUT = {
                           'truncated or corrupt HDF5 file'),
     'restart-version': ([*BASE, '-pf_restart', '{tmp}/version.h5'], 'wrong version 2'),
     'restart-box': ([*BASE, '-pf_restart', '{tmp}/box.h5'], 'differs from the expected'),
+    'restart-half': ([*BASE, '-pf_restart', '{tmp}/half.h5'],
+                     'holds a half-box solution: add -pf_symmetric'),
     'output-dir': ([*BASE, '-pf_output', '{tmp}'], 'is a directory'),
     'output-below-file': ([*BASE, '-pf_output', '{tmp}/text.h5/x.h5'], 'is not a directory'),
 }
@@ -70,7 +72,7 @@ def bad_files(tmp):
     attrs = {key: 1.0 for key in checkpoint.FLOAT_ATTRS}
     attrs.update(converged=0, box=(1.5, 2.0))
     for name, change in (('truncated', {}), ('version', {'version': 2}),
-                         ('box', {'box': (1.0, 2.0)})):
+                         ('box', {'box': (1.0, 2.0)}), ('half', {'symmetric': 1})):
         path = tmp / f'{name}.h5'
         checkpoint.write(path, nodes, np.zeros(300), attrs)
         with h5py.File(path, 'r+') as f:
@@ -212,3 +214,21 @@ def test_an_unused_option_is_refused_after_the_run(runs, tmp_path, extra, status
     else:
         assert len(errors) == 1 and '-stage2_snes_fake never used' in errors[0], out.stderr
     assert _energy(path)[0]['converged'] == 1  # the result itself is kept
+
+
+def test_half_box_solve_equals_the_full_box(tmp_path):
+    """The mirror plane z = Zb/2 and no moment constraint: on a lattice that is
+    its own mirror image, the same energy and multipliers from half the nodes."""
+    scene = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '1100', '-pf_eps', '0.07']
+    result = {}
+    for half in (False, True):
+        path = str(tmp_path / f'half{int(half)}.h5')
+        out = pfm(*scene, '-pf_symmetric', str(half).lower(), '-pf_output', path)
+        assert out.returncode == 0, out.stderr
+        result[half] = _energy(path)[0]
+    full, half = result[False], result[True]
+    assert half['symmetric'] == 1 and full['symmetric'] == 0
+    assert 2 * half['n_nodes'] < full['n_nodes'] + 60  # the plane's row is shared
+    for name in ('energy', 'area', 'volume', 'nu_area', 'nu_volume'):
+        assert abs(half[name] / full[name] - 1) < 1e-7, name
+    assert half['moment'] == 0.0 and half['nu_moment'] == 0.0

@@ -42,10 +42,36 @@ def test_box_volume():
 def test_axis_mirrors_are_reflections():
     x = nodes.uniform(BOX, 500)
     beta = np.full(len(x), 3.0)
-    aug, baug, owner = nodes.with_axis_mirrors(x, beta, 0.2)
+    aug, baug, owner = nodes.with_mirrors(x, beta, 0.2)
     extra = aug[len(x):]
     assert np.all(extra[:, 0] < 0) and np.allclose(np.abs(extra), x[owner[len(x):]])
     assert not np.any(x[owner[len(x):], 0] == 0.0)  # axis nodes are their own mirrors
+
+
+def test_plane_mirrors_reflect_the_nodes_and_the_axis_mirrors():
+    x = nodes.uniform(BOX, 500, half=True)
+    plane, radius = BOX[1] / 2, 0.2
+    aug, baug, owner = nodes.with_mirrors(x, np.arange(len(x), dtype=float), radius, plane)
+    assert np.array_equal(baug, owner)  # every image carries its original's beta
+    image = aug[len(x):]
+    original = x[owner[len(x):]]
+    np.testing.assert_allclose(np.abs(image[:, 0]), original[:, 0])
+    below = image[:, 1] < plane
+    np.testing.assert_allclose(2 * plane - image[below, 1], original[below, 1])
+    # Nodes near the corner (0, plane) have three images: r, z and both flipped.
+    near = (x[:, 0] > 0) & (x[:, 0] < radius) & (x[:, 1] > plane) & (x[:, 1] < plane + radius)
+    counts = np.bincount(owner, minlength=len(x))
+    assert near.any() and np.all(counts[near] == 4)
+    assert np.all(counts[x[:, 1] == plane] <= 2)  # nodes on the plane are their own images
+
+
+def test_unfold_mirrors_a_half_box_solution():
+    x = nodes.uniform(BOX, 500, half=True)
+    phi = x[:, 1] ** 2
+    full, values = nodes.unfold(x, phi, BOX[1] / 2)
+    assert len(full) == 2 * len(x) - np.sum(x[:, 1] == BOX[1] / 2)
+    # phi = z^2 above the plane, its mirror image (Zb - z)^2 below.
+    np.testing.assert_allclose(values, np.maximum(full[:, 1], BOX[1] - full[:, 1]) ** 2)
 
 
 def test_spheroids_have_the_scene_area_and_volume():

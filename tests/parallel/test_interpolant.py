@@ -65,7 +65,7 @@ def test_axis_is_a_symmetry_line():
     from pfmembrane import maxent
     xy = nodes.uniform(BOX, 1200)
     beta = 0.8 / nodes.nodal_spacing(xy) ** 2
-    aug, baug, owner = nodes.with_axis_mirrors(xy, beta, maxent.support_radius(beta))
+    aug, baug, owner = nodes.with_mirrors(xy, beta, maxent.support_radius(beta))
     phi = tanh_sphere(xy) + 0.3 * np.cos(3 * xy[:, 1])  # smooth, even in r, not symmetric in z
 
     def phi_r(r, mirrors=True):
