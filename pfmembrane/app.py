@@ -26,6 +26,18 @@ ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
 LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 
 
+# A free node next to a Dirichlet edge with phi more than this above -1 means the
+# box edges, which hold phi = -1, press on the vesicle.
+BOUNDARY_TOL = 1e-3
+
+
+def boundary_phi(grid, phi):
+    """Largest nodal phi among the free nodes sharing a triangle with a Dirichlet node."""
+    tri = grid.triangles
+    layer = np.unique(tri[grid.dirichlet[tri].any(axis=1)])
+    return float(phi[layer[~grid.dirichlet[layer]]].max())
+
+
 def resolved_eps(grid):
     """Smallest eps the grid resolves."""
     return RESOLUTION * spacing_peak(grid.h)
@@ -97,6 +109,8 @@ def run(comm):
     t_start = time.perf_counter()
     output = p.output or options.default_output(p)
     size = comm.getSize()
+    if p.box == 'auto':  # a restart continues in its checkpoint's box
+        p.box = checkpoint.read(p.restart, comm.tompi4py()).box
     PETSc.Sys.Print(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
                     f"v={p.reduced_volume:g} box={p.box[0]:g}x{p.box[1]:g} gamma={p.gamma:g} "
                     f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}"
@@ -149,7 +163,7 @@ def run(comm):
             solve_stages.append(stage)
             stage.push()
             try:
-                vals, res = fn(x)
+                vals, _ = fn(x)
             finally:
                 stage.pop()
             s = solver.stats[name[2:].lower()]
@@ -161,7 +175,7 @@ def run(comm):
     except (SolveError, Interrupted) as e:
         converged, message = False, str(e)
         status = e.status if isinstance(e, Interrupted) else 1
-        vals, res = problem.gradients(x, solver.gE, solver.gA), None
+        vals = problem.gradients(x, solver.gE, solver.gA)
 
     stage = PETSc.Log.Stage('pfCheckpoint')
     stage.push()
@@ -192,6 +206,8 @@ def run(comm):
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)
+    attrs["boundary_phi"] = comm.tompi4py().bcast(
+        boundary_phi(grid, phi_nodes) if comm.getRank() == 0 else None, root=0)
     if converged:  # an interrupted run checkpoints at once
         attrs.update(sharp_comparison(comm, xy, phi_nodes, attrs))
     checkpoint.write(output, xy, phi_nodes, attrs, comm=comm.tompi4py())
@@ -200,6 +216,11 @@ def run(comm):
         f"result: E {vals[0]:.8f} nu_A {solver.nu[0]:.6g} nu_V {solver.nu[1]:.6g} "
         f"max|phi| {solver.max_phi(x):.4f} converged {int(converged)}"
         f"{' UNDER-RESOLVED' if under else ''} wall {wall:.2f} s -> {output}")
+    if attrs["boundary_phi"] > -1.0 + BOUNDARY_TOL:
+        PETSc.Sys.Print(
+            f"warning: phi reaches {attrs['boundary_phi']:.4f} next to the box edges, which hold "
+            f"-1: the box {p.box[0]:g}x{p.box[1]:g} constrains the vesicle (enlarge -pf_box, "
+            "or -pf_box auto)")
     if 'sharp_energy' in attrs:
         PETSc.Sys.Print(
             f"sharp interface: E {attrs['sharp_energy']:.6f}, relative error "

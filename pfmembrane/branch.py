@@ -15,7 +15,7 @@ step runs, the later ones run too. The branch stops at the first failed step. Th
 to OUT/<branch>.md.
 
 A restart keeps the box of its checkpoint, so one box serves the whole branch: the paper's
-1.5 x 2, enlarged where a shape of the branch needs it (`required_box`).
+1.5 x 2, enlarged where a shape of the branch needs it (`sizing.required_box`).
 
 `--plot OUT` draws OUT/energy.png: E against v for every branch under OUT, the sharp-interface
 energies as lines, and the zero level sets of the phase fields as a strip of silhouettes.
@@ -32,10 +32,10 @@ import time
 import h5py
 import numpy as np
 
-from . import checkpoint, launch, sharp
-from .initial import spheroid_axes
+from . import checkpoint, launch
 from .nodes import nodal_spacing, uniform
 from .options import BRANCHES
+from .sizing import required_box
 
 SCENE = os.path.join('options', 'branch', '{}.opts')
 PAPER_BOX = (1.5, 2.0)
@@ -72,47 +72,6 @@ def volumes(start, stop, step):
     if not all(0.0 < v <= 1.0 for v in vs):
         raise ValueError("reduced volumes must lie in (0, 1]")
     return vs
-
-
-def extents(branch, v, radius, c0=0.0, k=1.0):
-    """Half-sizes of the shapes of a branch at reduced volume v.
-
-    Not collective.
-
-    Returns
-    -------
-    dict
-        ``sharp``: (max r, max |z - z_centroid|) of the sharp-interface shape
-        (`pfmembrane.sharp.solve`); ``spheroid``: semi-axes (a, c) of the
-        initial spheroid, which the application requires to fit on every run,
-        restarts included.
-    """
-    shape = sharp.solve(v, branch, c0=c0, radius=radius, k=k)
-    area, volume = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
-    return {'sharp': (float(np.max(shape.r)), float(np.max(np.abs(shape.z)))),
-            'spheroid': spheroid_axes(area, volume, branch)}
-
-
-def required_box(branch, vs, eps, radius, c0=0.0, k=1.0):
-    """Smallest (Rb, Zb) holding every shape of the branch at the volumes `vs`.
-
-    Not collective.  The vesicle is centred at Zb / 2 (moment constraint); each
-    of its sharp-interface shape and initial spheroid needs a margin of
-    `MARGIN` eps to r = Rb and to z = 0, Zb.
-
-    Returns
-    -------
-    box : tuple of float
-        (Rb, Zb) needed.
-    sizes : dict
-        ``sharp`` and ``spheroid``: the largest half-sizes (r, z) over `vs`.
-    """
-    sizes = {}
-    for v in vs:
-        for kind, size in extents(branch, v, radius, c0, k).items():
-            sizes[kind] = tuple(np.maximum(sizes.get(kind, (0.0, 0.0)), size))
-    r, z = np.max(list(sizes.values()), axis=0) + MARGIN * eps
-    return (float(r), float(2.0 * z)), sizes
 
 
 def default_box(required):
@@ -235,8 +194,8 @@ def header(branch, vs, box, need, sizes, given, args):
         f"{vs[0]:g} to {vs[-1]:g} with a margin of {MARGIN:g} eps = {MARGIN * args.eps:g}, which "
         f"needs Rb >= {need[0]:.4f} and Zb >= {need[1]:.4f}: "
         f"sharp-interface shapes reach r = {sizes['sharp'][0]:.4f} and |z - Zb/2| = "
-        f"{sizes['sharp'][1]:.4f}; the initial spheroids, which the application checks on every "
-        f"run, restarts included, have semi-axes up to a = {sizes['spheroid'][0]:.4f}, "
+        f"{sizes['sharp'][1]:.4f}; the initial spheroids have semi-axes up to "
+        f"a = {sizes['spheroid'][0]:.4f}, "
         f"c = {sizes['spheroid'][1]:.4f}.\n\n"
         "E_sharp: the axisymmetric Canham-Helfrich shape of the same scene (checkpoint attribute "
         "`sharp_energy`); error vs sharp = (E - E_sharp) / E_sharp; d max: largest distance from "
@@ -257,7 +216,7 @@ def continuation(args):
         return 2
     scene = SCENE.format(args.branch)
     radius, c0, k = (scene_value(scene, name) for name in ('radius', 'c0', 'k'))
-    need, sizes = required_box(args.branch, vs, args.eps, radius, c0, k)
+    need, sizes = required_box(args.branch, vs, args.eps, radius, c0, k, margin=MARGIN)
     box = args.box or default_box(need)
     if box[0] < need[0] or box[1] < need[1]:
         print(f"pfmembrane.branch: --box {box[0]:g},{box[1]:g} cannot hold the {args.branch} "

@@ -6,7 +6,7 @@ A `-pf_` name that `Params` does not know is refused before any work; any
 other option still unused when a run has finished is refused at the end
 (`check_unused`), unless `-options_left` asks for PETSc's own report.
 """
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 import ctypes
 import difflib
 import math
@@ -75,7 +75,8 @@ HELP = {
     'c0': 'spontaneous curvature C0',
     'radius': 'radius R of the sphere of equal area: A0 = 4 pi R^2',
     'reduced_volume': 'reduced volume v: V0 = v (4/3) pi R^3, 0 < v <= 1',
-    'box': 'Rb,Zb of the (r,z) box',
+    'box': 'Rb,Zb of the (r,z) box, or auto: the sharp shape and initial spheroid of '
+           '(radius, reduced_volume, branch) with 7 eps to spare (a restart: its box)',
     'branch': 'family of the initial guess: ' + ' | '.join(BRANCHES),
     'nodes': 'approximate node count of the uniform grid (of the full box)',
     'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, no moment constraint',
@@ -95,7 +96,8 @@ HELP = {
     'force': 'run even when eps is below what the grid resolves (result flagged)',
 }
 
-KINDS = {float: 'a number', int: 'an integer', bool: 'true or false', tuple: 'two numbers Rb,Zb'}
+KINDS = {float: 'a number', int: 'an integer', bool: 'true or false',
+         tuple: "two numbers Rb,Zb or 'auto'"}
 
 
 def help_text():
@@ -131,6 +133,8 @@ def _get(opts, name, kind, default):
                 raise UsageError(f"-{key} needs a value")
             return text
         if kind is tuple:
+            if text.strip().lower() == 'auto':
+                return 'auto'
             value = tuple(float(t) for t in text.split(','))
             if len(value) != 2:
                 raise ValueError
@@ -177,8 +181,9 @@ def validate(p):
         value = getattr(p, f.name)
         if f.type is float:
             _require(math.isfinite(value), f.name, 'a finite number', value)
-    _require(len(p.box) == 2 and all(math.isfinite(b) and b > 0 for b in p.box),
-             'box', 'two positive numbers Rb,Zb', p.box)
+    if p.box != 'auto':
+        _require(len(p.box) == 2 and all(math.isfinite(b) and b > 0 for b in p.box),
+                 'box', 'two positive numbers Rb,Zb', p.box)
     for name in ('eps', 'k', 'radius', 'gamma'):
         _require(getattr(p, name) > 0, name, '> 0', getattr(p, name))
     if not 0.0 < p.reduced_volume <= 1.0:
@@ -199,7 +204,18 @@ def validate(p):
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
+    if p.restart:
+        return  # the box is the checkpoint's, the start its phi
+    if p.box == 'auto':
+        p.box = auto_box(p)
     check_fits(p)
+
+
+def auto_box(p):
+    """The box of `-pf_box auto` for a fresh start (`sizing.auto_box`)."""
+    from .sizing import auto_box as sized
+    check_fits(replace(p, box=(math.inf, math.inf)))  # refuses a scene without a spheroid
+    return sized(p.branch, p.reduced_volume, p.eps, p.radius, p.c0, p.k)
 
 
 def check_fits(p):

@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane import branch, checkpoint, figures, nodes  # noqa: E402
+from pfmembrane import branch, checkpoint, figures, nodes, sizing  # noqa: E402
 from pfmembrane.initial import spheroid_axes, spheroid_phi  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -77,9 +77,9 @@ def test_volumes_and_the_default_boxes():
     vs = [0.95, 0.65]
     # The paper's box holds the oblate branch; the prolate dumbbell at v = 0.65 (and the
     # spheroid the application checks it against) needs a taller one.
-    need, _ = branch.required_box('oblate', vs, 0.04, 0.4)
+    need, _ = sizing.required_box('oblate', vs, 0.04, 0.4, margin=branch.MARGIN)
     assert branch.default_box(need) == branch.PAPER_BOX
-    need, sizes = branch.required_box('prolate', vs, 0.04, 0.4)
+    need, sizes = sizing.required_box('prolate', vs, 0.04, 0.4, margin=branch.MARGIN)
     rb, zb = branch.default_box(need)
     assert rb == 1.5 and math.isclose(zb, 2.2) and zb >= need[1] > 2.0
     assert 2 * (sizes['sharp'][1] + 0.12) <= zb

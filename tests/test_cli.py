@@ -232,3 +232,18 @@ def test_half_box_solve_equals_the_full_box(tmp_path):
     for name in ('energy', 'area', 'volume', 'nu_area', 'nu_volume'):
         assert abs(half[name] / full[name] - 1) < 1e-7, name
     assert half['moment'] == 0.0 and half['nu_moment'] == 0.0
+
+
+def test_a_tight_box_is_reported_and_an_auto_restart_keeps_its_box(tmp_path):
+    tight, again = str(tmp_path / 'tight.h5'), str(tmp_path / 'again.h5')
+    scene = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '600', '-pf_eps', '0.06']
+    out = pfm(*scene, '-pf_box', '0.7,0.8', '-pf_output', tight)
+    assert out.returncode == 0, out.stderr
+    a, _ = _energy(tight)
+    assert a['boundary_phi'] > -1 + 1e-3
+    assert 'constrains the vesicle' in out.stdout
+    out = pfm(*scene, '-pf_box', 'auto', '-pf_restart', tight, '-pf_output', again)
+    assert out.returncode == 0, out.stderr
+    b, _ = _energy(again)
+    assert list(b['box']) == [0.7, 0.8]
+    assert abs(b['energy'] / a['energy'] - 1) < 1e-8

@@ -11,6 +11,7 @@ import petsc4py
 
 petsc4py.init(sys.argv[:1])
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import event, given, settings, strategies as st  # noqa: E402
 from mpi4py import MPI  # noqa: E402
@@ -163,3 +164,14 @@ def test_output_path_checked_before_the_run(tmp_path):
         options.check_output(str(tmp_path), comm)
     with pytest.raises(UsageError, match="cannot create files"):
         options.check_output('/proc/state.h5', comm)
+
+
+@pytest.mark.parametrize('branch, box', [('oblate', (0.78, 0.98)), ('prolate', (0.55, 2.04))])
+def test_an_auto_box_holds_the_shapes_with_seven_eps_to_spare(branch, box):
+    from pfmembrane import sizing
+    p = read({'box': 'auto', 'branch': branch, 'eps': '0.04'})
+    assert p.box == box
+    r, z = np.max(list(sizing.extents(branch, 0.8, 0.4).values()), axis=0) + 7 * 0.04
+    # Both shapes fit with the margin; the box is rounded up by less than 0.01.
+    assert 0 <= p.box[0] - r < 0.01 and 0 <= p.box[1] - 2 * z < 0.01
+    assert read({'box': 'auto', 'restart': 'any.h5'}).box == 'auto'  # the checkpoint's box

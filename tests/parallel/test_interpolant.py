@@ -3,7 +3,6 @@
 Collective: runs on one rank under pytest and on two under `mpiexec -n 2`.
 """
 import numpy as np
-import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.integrate import quad
