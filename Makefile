@@ -13,7 +13,7 @@ DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy 
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 bench bench-basis branches figures extremes clean
+        adapt-12271 adapt-24597 bench bench-basis bench-scenes branches figures extremes clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -26,6 +26,7 @@ help:
 	@echo "make adapt    all four sequences, tables under runs/adapt/"
 	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
 	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
+	@echo "make bench-scenes half box and auto box against the paper box (runs/bench/scenes.md)"
 	@echo "make branches  oblate and prolate branches, v = 0.95 -> 0.65 (Figure 6), runs/branches/"
 	@echo "make figures  the README's figures from existing checkpoints, runs/figures/index.md"
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
@@ -78,6 +79,9 @@ bench: install
 
 bench-basis: install
 	$(PY) -m pfmembrane.bench basis --out runs/bench
+
+bench-scenes: install
+	$(PY) -m pfmembrane.economy --out runs/bench --np $(NP)
 
 # Both branches run even if one stops early; the target fails if either did. A restarted step
 # starts near its answer, so stage 1 stops after one iteration at its default constraint
