@@ -151,7 +151,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
 
     Collective. The functions `Grid` is built from are wrapped while it is
     constructed, so that their time is measured on the calls the application
-    makes and the max-ent basis they return can be inspected without being
+    makes and the sizes of the max-ent bases they return can be read without being
     evaluated twice.
 
     Parameters
@@ -176,7 +176,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
     mpi = comm.tompi4py()
     rss_start = _peak_rss_mb()
     seconds = {'nodes': 0.0, 'spacing': 0.0, 'partition': 0.0, 'basis': 0.0}
-    bases = []
+    sizes = []  # (support entries, points) of every basis evaluation
     watched = [(discretization, 'nodal_spacing', 'spacing'),
                (quadrature, 'triangulate', 'partition'),
                (discretization, 'Layout', 'partition'),
@@ -192,7 +192,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
             seconds[part] += time.perf_counter() - t
             calls[k] += 1
             if part == 'basis':
-                bases.append(out)
+                sizes.append((int(out.indptr[-1]), len(out.indptr) - 1))
             return out
         return call
 
@@ -215,9 +215,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
     # The rest of Grid: axis mirrors, the sparse operators and their ghost layout.
     seconds['operators'] = total - seconds['spacing'] - seconds['partition'] - seconds['basis']
     seconds['grid'] = total
-    support = sum(int(b.indptr[-1]) for b in bases)
-    points = sum(len(b.indptr) - 1 for b in bases)
-    support, points = mpi.allreduce(support), mpi.allreduce(points)
+    support, points = (mpi.allreduce(sum(x)) for x in zip(*sizes))
     peak = _peak_rss_mb()
     return {'requested': n, 'nodes': len(xy), 'free_nodes': grid.layout.nglobal,
             'quadrature_points': grid.nquad, 'mean_support': support / points,

@@ -13,6 +13,8 @@ from .gram import Gram
 from .nodes import nodal_spacing
 from .partition import Layout
 
+POINT_CHUNK = 16384  # quadrature points per max-ent evaluation: bounds the working memory
+
 
 class Operators(NamedTuple):
     """Rank-local maps from local nodal values to fields at local quadrature points.
@@ -81,25 +83,56 @@ class Grid:
         self._gram = None
 
     def _operators(self, points, weights):
+        """The operators, built POINT_CHUNK quadrature points at a time so that
+        only one chunk's basis is ever held: the peak memory is about that of
+        the operators themselves."""
+        names = ('B0', 'Br', 'Bz', 'BL')
+        pieces = [self._chunk(points[start:start + POINT_CHUNK])
+                  for start in range(0, len(points), POINT_CHUNK)]
+        layout = self.layout
+        layout.set_ghosts(np.unique(np.concatenate([c['ghosts'] for c in pieces])))
+        indptr = np.concatenate([[0], np.cumsum(np.concatenate([c['counts'] for c in pieces]))])
+        indices = np.concatenate([layout.local_index(c.pop('columns')).astype(np.int32)
+                                  for c in pieces])
+        shape = (len(points), layout.nlocal)
+        ops = {}
+        for k, name in enumerate(names):
+            # One index array for all four: they share one sorted, duplicate-free pattern.
+            data = np.concatenate([c['data'][k] for c in pieces])
+            for c in pieces:
+                c['data'][k] = None
+            ops[name] = sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
+            ops[name].has_sorted_indices = True
+            ops['b' + name[1:]] = np.concatenate([c['offsets'][k] for c in pieces])
+        return Operators(w=weights, r=points[:, 0], z=points[:, 1], **ops)
+
+    def _chunk(self, points):
+        """Operator rows at some quadrature points: per point the count of free
+        nodes, their global numbers sorted as their local indices will be, the
+        four operators' values (a node's mirror images summed), and the
+        constant contributions of the Dirichlet nodes (phi = -1)."""
         basis = folded_basis(points, self.nodes, self.beta, self.cutoff, derivatives=2,
                              plane=self.plane)
         rows = np.repeat(np.arange(len(points)), np.diff(basis.indptr))
-        node = basis.indices
-        r = points[:, 0]
-        columns = {'B0': basis.p, 'Br': basis.dp[:, 0], 'Bz': basis.dp[:, 1],
-                   'BL': basis.ddp[:, 0] + basis.dp[:, 0] / r[rows] + basis.ddp[:, 2]}
-        fixed = self.dirichlet[node]
-        layout = self.layout
-        layout.set_ghosts(layout.number[node[~fixed]])
-        col = layout.local_index(layout.number[node[~fixed]])
-        shape = (len(points), layout.nlocal)
-        ops = {}
-        for name, val in columns.items():
-            ops[name] = sp.csr_matrix((val[~fixed], (rows[~fixed], col)), shape=shape)
-            # Dirichlet nodes hold phi = -1: their contribution is a constant.
-            ops['b' + name[1:]] = -np.bincount(rows[fixed], weights=val[fixed],
-                                               minlength=len(points))
-        return Operators(w=weights, r=r, z=points[:, 1], **ops)
+        r = points[rows, 0]
+        values = (basis.p, basis.dp[:, 0], basis.dp[:, 1],
+                  basis.ddp[:, 0] + basis.dp[:, 0] / r + basis.ddp[:, 2])
+        fixed = self.dirichlet[basis.indices]
+        offsets = [-np.bincount(rows[fixed], weights=v[fixed], minlength=len(points))
+                   for v in values]
+        lay = self.layout
+        g = lay.number[basis.indices[~fixed]]
+        # Local indices put owned unknowns first, then ghosts, each ascending:
+        # this key orders global numbers the same way.
+        owned = (g >= lay.start) & (g < lay.start + lay.nowned)
+        span = 2 * lay.nglobal + 1
+        keys, entry = np.unique(rows[~fixed] * span + np.where(owned, g - lay.start, lay.nglobal + g),
+                                return_inverse=True)
+        row, key = np.divmod(keys, span)
+        columns = np.where(key < lay.nglobal, key + lay.start, key - lay.nglobal)
+        data = [np.bincount(entry, weights=v[~fixed], minlength=len(keys)) for v in values]
+        return dict(counts=np.bincount(row, minlength=len(points)), columns=columns, data=data,
+                    offsets=offsets, ghosts=np.unique(g[~owned]))
 
     def hessian_pattern(self):
         """Local (nlocal x nlocal) sparsity of B^T diag(c) B, free of cancellation."""
