@@ -57,6 +57,7 @@ RUNS = [
     ('quad2', 2, {'quad_degree': 2}),
     ('quad5', 2, {'quad_degree': 5}),
     ('tao', 2, {'stage1': 'tao'}),
+    ('half-box', 2, {'symmetric': 'true'}),
     ('n12271', 2, {'nodes': 12271}),
     ('n24597', 2, {'nodes': 24597}),
     ('n12271-eps0.03', 2, {'nodes': 12271, 'eps': 0.03}),
@@ -372,6 +373,7 @@ def record(config, path, costs):
            'gamma': float(a['gamma']), 'cutoff': float(a.get('cutoff', NAN)),
            'quad_degree': int(a.get('quad_degree', -1)), 'stage1': config.options['stage1'],
            'adapt': float(config.options.get('adapt', 0.0)), 'restart': config.restart,
+           'symmetric': int(a.get('symmetric', 0)),
            'moved': moved,
            'energy': energy, 'finest': finest, 'error_finest': energy / finest - 1.0,
            'error_sharp': energy / SHARP[scene] - 1.0, 'converged': int(a['converged']),
@@ -462,6 +464,8 @@ def _describe(r):
     text = (f"{r['nodes']} nodes, eps {r['eps']:g}, gamma {r['gamma']:g}, cut-off "
             f"{r['cutoff']:g}, degree {r['quad_degree']}, {r['stage1']}, {r['ranks']} "
             f"rank{'s' if r['ranks'] > 1 else ''}")
+    if r.get('symmetric'):
+        text += ", half box"
     if r['moved']:
         text += f", adapted with f = {r['adapt']:g} from {os.path.basename(r['restart'])}"
     return text
