@@ -50,7 +50,9 @@ def measure(path):
     with phi < -0.99, the Dirichlet ones aside) and the share of V0 that its
     offset from -1 puts into V over the box."""
     with h5py.File(path, 'r') as f:
-        a, phi = dict(f.attrs), f['phi'][:]
+        # Plain Python values, for the JSON file.
+        a = {k: v.tolist() if hasattr(v, 'tolist') else v for k, v in f.attrs.items()}
+        phi = f['phi'][:]
     far = phi[(phi < -0.99) & (phi != -1.0)]
     a['bulk'] = float(np.median(far)) + 1.0 if len(far) else math.nan
     rb, zb = a['box']
