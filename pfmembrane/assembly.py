@@ -6,6 +6,7 @@ arrive by forward scatters, gradient contributions leave by reverse
 scatter-adds, Hessian rows owned elsewhere travel through MatSetValues' stash.
 """
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .functionals import Functionals
@@ -78,6 +79,12 @@ class Problem:
         if self.ncon == 2:
             v[3] = 0.0
         return v
+
+    def max_abs_phi(self, x):
+        """max |phi_h| over every rank's quadrature points."""
+        o = self.forms.ops
+        u = o.B0 @ self.local(x) + o.b0
+        return self.mpi.allreduce(float(np.abs(u).max(initial=0.0)), op=MPI.MAX)
 
     def gradients(self, x, gE, gA):
         """Global (E, A, V, M) at x; fills gE and gA. grad V, grad M are constant."""

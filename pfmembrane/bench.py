@@ -41,11 +41,34 @@ SCENES = {'discocyte': 'options/discocyte.opts', 'dumbbell': 'options/dumbbell.o
 BASELINE = {'nodes': 6124, 'eps': 0.04, 'gamma': 0.8, 'cutoff': 1e-6, 'quad_degree': 4,
             'stage1': 'newton'}
 
+
+def adaptive(prefix, changes):
+    """The paper's progressive adaptation (Table B.6, as options/adapt/discocyte):
+    a uniform start, then CVT steps with f = 10, 100, 1000 (stage 2 straight
+    from the transferred phi) and eps lowered on each grid, gamma 0.5."""
+    steps = [('g0.5', None, 0, 0.04), ('f10-eps0.04', 'g0.5', 10, 0.04),
+             ('f10-eps0.03', 'f10-eps0.04', 0, 0.03), ('f100-eps0.03', 'f10-eps0.03', 100, 0.03),
+             ('f100-eps0.025', 'f100-eps0.03', 0, 0.025),
+             ('f1000-eps0.025', 'f100-eps0.025', 1000, 0.025),
+             ('f1000-eps0.02', 'f1000-eps0.025', 0, 0.02), ('f1000-eps0.015', 'f1000-eps0.02', 0, 0.015),
+             ('f1000-eps0.01', 'f1000-eps0.015', 0, 0.01)]
+    rows = []
+    for label, start, f, eps in steps:
+        row = dict(changes, gamma=0.5, eps=eps)
+        if start:
+            row['restart'] = prefix + start
+        if f:
+            row.update(adapt=f, stage1='none')
+        rows.append((prefix + label, 2, row))
+    return rows
+
+
 # One row per run and scene: (label, MPI ranks, changes to BASELINE). One knob
 # at a time around the baseline, then finer uniform grids, then the paper's
-# progressive adaptation (Table B.6): `restart` names an earlier row of the
-# same scene (or a checkpoint path ending in .h5) whose nodes are adapted
-# with density amplification `adapt` to its phi before solving at a smaller eps.
+# progressive adaptation on the full and on the half box: `restart` names an
+# earlier row of the same scene (or a checkpoint path ending in .h5) whose
+# nodes are adapted with density amplification `adapt` to its phi. Keys that
+# start with '-' are PETSc options, passed as they are.
 RUNS = [
     ('base', 2, {}),
     ('np1', 1, {}),
@@ -57,14 +80,15 @@ RUNS = [
     ('quad2', 2, {'quad_degree': 2}),
     ('quad5', 2, {'quad_degree': 5}),
     ('tao', 2, {'stage1': 'tao'}),
+    ('superlu', 2, {'-stage1_pc_type': 'lu', '-stage1_pc_factor_mat_solver_type': 'superlu_dist',
+                    '-stage2_pc_factor_mat_solver_type': 'superlu_dist'}),
     ('half-box', 2, {'symmetric': 'true'}),
     ('n12271', 2, {'nodes': 12271}),
     ('n24597', 2, {'nodes': 24597}),
     ('n12271-eps0.03', 2, {'nodes': 12271, 'eps': 0.03}),
     ('n24597-eps0.03', 2, {'nodes': 24597, 'eps': 0.03}),
-    ('f10-eps0.03', 2, {'restart': 'base', 'adapt': 10, 'eps': 0.03}),
-    ('f100-eps0.02', 2, {'restart': 'f10-eps0.03', 'adapt': 100, 'eps': 0.02}),
-    ('f1000-eps0.01', 2, {'restart': 'f100-eps0.02', 'adapt': 1000, 'eps': 0.01}),
+    *adaptive('', {}),
+    *adaptive('half-', {'symmetric': 'true'}),
 ]
 
 # --quick: a few seconds per run, 1000 nodes in a smaller box; the adapted
@@ -324,7 +348,7 @@ def command(config, path):
     """The mpiexec command line of a run writing its checkpoint to `path`."""
     cmd = launch.command(config.ranks, '-options_file', SCENES[config.scene])
     for key, value in config.options.items():
-        cmd += [f"-pf_{key}", str(value)]
+        cmd += [key if key.startswith('-') else f"-pf_{key}", str(value)]
     if config.restart:
         cmd += ['-pf_restart', config.restart]
     return cmd + ['-pf_output', path]

@@ -20,7 +20,7 @@ def _hex_grid(box, h, symmetric=False):
     the axis adds no irregularity to the basis (nor error to phi_r / r).
     `symmetric` rounds the row count to a multiple of 4: an even row, with
     its node on the axis, then lies on z = Zb / 2 and the lattice is its own
-    mirror image across that plane (the paper's 6124 and 12271 nodes are)."""
+    mirror image across that plane (the 6124-node lattice already is)."""
     Rb, Zb = box
     nr = max(int(round(Rb / h)), 2)
     r_edge = np.linspace(0.0, Rb, nr + 1)
