@@ -506,7 +506,7 @@ def solve_row(r):
             f"{' (nodes unchanged)' if r['adapt'] and not r['moved'] else ''} | "
             f"{r['energy']:.5f} | {_fmt(r['finest'], '.5f')} | "
             f"{_percent(r['error_finest'])} | {_percent(r['error_sharp'])} | "
-            f"{r['stage1_iterations']}+{r['stage2_iterations']} | {r['converged']}"
+            f"{max(r['stage1_iterations'], 0) or '-'}+{r['stage2_iterations']} | {r['converged']}"
             f"{' (under-resolved)' if r['under_resolved'] else ''} | {r['wall_time']:.1f} | "
             f"{r['cost']:.1f} | "
             + ' | '.join(_fmt(r[name], '.1f') for name in TIME_ATTRS)
