@@ -8,6 +8,7 @@ Each step is an options file of the directory, run in name order as
 a step restarts from the checkpoint of an earlier one, with `-pf_adapt f`
 where a new grid is made. Steps whose converged checkpoint exists are not
 run again (unless --force); a step whose start did not converge is not run.
+`--report` only writes the table of the checkpoints that exist.
 """
 import argparse
 import glob
@@ -125,12 +126,14 @@ def main(argv=None):
     ap.add_argument('--np', type=int, default=2)
     ap.add_argument('--force', action='store_true', help='rerun steps with a converged checkpoint')
     ap.add_argument('--out', default=None, help='table path (default runs/adapt/<name>.md)')
+    ap.add_argument('--report', action='store_true',
+                    help='only write the table of the checkpoints that exist, run nothing')
     args = ap.parse_args(argv)
     steps = sorted(glob.glob(os.path.join(args.directory, '*.opts')))
     if not steps:
         sys.exit(f"{args.directory}: no options files")
     t0 = time.perf_counter()
-    walls = run(steps, args.scene, args.np, args.force)
+    walls = {} if args.report else run(steps, args.scene, args.np, args.force)
     elapsed = time.perf_counter() - t0
     rows, total = table(steps, walls)
     name = os.path.basename(os.path.normpath(args.directory))
@@ -141,7 +144,8 @@ def main(argv=None):
                 f"{os.cpu_count()} cores. Regenerate: `python -m pfmembrane.sequence {args.directory} "
                 f"--scene {args.scene} --force`.\n\n")
         f.write('\n'.join(rows) + '\n\n')
-        f.write(f"Sum of the runs' wall times: {total:.1f} s (this invocation: {elapsed:.1f} s).\n")
+        f.write(f"Sum of the runs' wall times: {total:.1f} s"
+                + ('.\n' if args.report else f" (this invocation: {elapsed:.1f} s).\n"))
     print('\n'.join(rows))
     print(f"sum of run wall times {total:.1f} s -> {out}")
     return 0 if all(converged(output_of(s)) for s in steps) else 1
