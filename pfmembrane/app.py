@@ -26,30 +26,17 @@ ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
 LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 
 
-# A free node next to a Dirichlet edge with phi more than this above -1 means the
-# box edges, which hold phi = -1, press on the vesicle.
-BOUNDARY_TOL = 1e-3
-
-
-def boundary_phi(grid, phi):
-    """Largest nodal phi among the free nodes sharing a triangle with a Dirichlet node."""
-    tri = grid.triangles
-    layer = np.unique(tri[grid.dirichlet[tri].any(axis=1)])
-    return float(phi[layer[~grid.dirichlet[layer]]].max())
-
-
 def resolved_eps(grid):
     """Smallest eps the grid resolves."""
     return RESOLUTION * spacing_peak(grid.h)
 
 
-def start_nodes(p, comm):
+def start_nodes(p, ck, comm):
     """Nodes, nodal phi and multipliers (None, None from a uniform grid) of the
-    start: the restart checkpoint's, or with -pf_adapt its nodes relocated and
-    its phi transferred to them."""
-    if not p.restart:
+    start: those of the restart checkpoint `ck`, or with -pf_adapt its nodes
+    relocated and its phi transferred to them."""
+    if ck is None:
         return nodesets.uniform(p.box, p.nodes, half=p.symmetric), None, None
-    ck = checkpoint.read(p.restart, comm.tompi4py(), expect_box=p.box)
     if ck.symmetric != p.symmetric:
         raise options.UsageError(
             f"-pf_restart {p.restart} holds a {'half' if ck.symmetric else 'full'}-box solution: "
@@ -72,18 +59,21 @@ def start_nodes(p, comm):
     return xy, phi, nu
 
 
-def sharp_comparison(comm, xy, phi, attrs):
-    """Energy error and level-set distance against the sharp-interface shape of
-    the scene, as checkpoint attributes (none when no level set exists).
+def phase_field_checks(comm, xy, phi, attrs):
+    """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
+    set exists, the energy error and level-set distance against the
+    sharp-interface shape of the scene, as checkpoint attributes.
 
     Collective; rank 0 computes, the others receive.
     """
     result = {}
     if comm.getRank() == 0:
+        ckpt = checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded()
+        result['boundary_phi'] = limit.boundary_phi(ckpt)
         try:
-            c = limit.compare(checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded())
-            result = {'sharp_energy': c['energy_sharp'], 'sharp_rel_error': c['rel_error'],
-                      'sharp_dist_max': c['dist_max'], 'sharp_dist_mean': c['dist_mean']}
+            c = limit.compare(ckpt)
+            result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
+                          sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'])
         except ValueError as e:
             PETSc.Sys.Print(f"sharp interface: no comparison ({e})", comm=PETSc.COMM_SELF)
     return comm.tompi4py().bcast(result, root=0)
@@ -109,15 +99,18 @@ def run(comm):
     t_start = time.perf_counter()
     output = p.output or options.default_output(p)
     size = comm.getSize()
-    if p.box == 'auto':  # a restart continues in its checkpoint's box
-        p.box = checkpoint.read(p.restart, comm.tompi4py()).box
+    t0 = time.perf_counter()
+    ck = None
+    if p.restart:  # -pf_box auto continues in the checkpoint's box
+        ck = checkpoint.read(p.restart, comm.tompi4py(),
+                             expect_box=None if p.box == 'auto' else p.box)
+        p.box = ck.box
     PETSc.Sys.Print(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
                     f"v={p.reduced_volume:g} box={p.box[0]:g}x{p.box[1]:g} gamma={p.gamma:g} "
                     f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}"
                     f"{' half box (mirror z=' + format(p.zc, 'g') + ')' if p.symmetric else ''}")
 
-    t0 = time.perf_counter()
-    xy, phi0, nu0 = start_nodes(p, comm)
+    xy, phi0, nu0 = start_nodes(p, ck, comm)
     basis_stage = PETSc.Log.Stage('pfBasis')
     basis_stage.push()
     grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree, p.spacing_smoothing,
@@ -136,8 +129,7 @@ def run(comm):
     basis_stage.pop()
     t_setup = time.perf_counter() - t0
 
-    targets = (p.area, p.volume) if p.symmetric else (p.area, p.volume, 0.0)
-    problem = Problem(grid, p.eps, p.k, p.c0, targets, p.zc)
+    problem = Problem(grid, p.eps, p.k, p.c0, (p.area, p.volume), p.zc)
     x = problem.create_vec()
     lay = grid.layout
     own = lay.order[lay.start:lay.start + lay.nowned]
@@ -185,6 +177,7 @@ def run(comm):
     if comm.getRank() == 0:
         phi_nodes = np.full(len(xy), -1.0)
         phi_nodes[lay.order] = values
+    max_phi = solver.max_phi(x)
     attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=p.eps,
                  k=p.k, c0=p.c0, gamma=p.gamma, nu_area=solver.nu[0], nu_volume=solver.nu[1],
                  nu_moment=solver.nu[2] if solver.ncon == 3 else 0.0, symmetric=int(p.symmetric),
@@ -192,7 +185,7 @@ def run(comm):
                  n_procs=size, cutoff=p.cutoff, quad_degree=p.quad_degree,
                  spacing_smoothing=p.spacing_smoothing,
                  radius=p.radius, reduced_volume=p.reduced_volume, branch=p.branch,
-                 under_resolved=int(under), eps_min=eps_min, n_nodes=len(xy), max_phi=solver.max_phi(x),
+                 under_resolved=int(under), eps_min=eps_min, n_nodes=len(xy), max_phi=max_phi,
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
                  factorizations=solver.factorizations, adapt=p.adapt, parent=p.restart,
@@ -206,21 +199,19 @@ def run(comm):
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
     attrs["box"] = np.asarray(p.box)
-    attrs["boundary_phi"] = comm.tompi4py().bcast(
-        boundary_phi(grid, phi_nodes) if comm.getRank() == 0 else None, root=0)
     if converged:  # an interrupted run checkpoints at once
-        attrs.update(sharp_comparison(comm, xy, phi_nodes, attrs))
+        attrs.update(phase_field_checks(comm, xy, phi_nodes, attrs))
     checkpoint.write(output, xy, phi_nodes, attrs, comm=comm.tompi4py())
     stage.pop()
     PETSc.Sys.Print(
         f"result: E {vals[0]:.8f} nu_A {solver.nu[0]:.6g} nu_V {solver.nu[1]:.6g} "
-        f"max|phi| {solver.max_phi(x):.4f} converged {int(converged)}"
+        f"max|phi| {max_phi:.4f} converged {int(converged)}"
         f"{' UNDER-RESOLVED' if under else ''} wall {wall:.2f} s -> {output}")
-    if attrs["boundary_phi"] > -1.0 + BOUNDARY_TOL:
+    if attrs.get("boundary_phi", -1.0) > -1.0 + limit.BOUNDARY_TOL:
         PETSc.Sys.Print(
-            f"warning: phi reaches {attrs['boundary_phi']:.4f} next to the box edges, which hold "
-            f"-1: the box {p.box[0]:g}x{p.box[1]:g} constrains the vesicle (enlarge -pf_box, "
-            "or -pf_box auto)")
+            f"warning: phi_h reaches {attrs['boundary_phi']:.4f} one eps inside the box edges, "
+            f"which hold -1: the box {p.box[0]:g}x{p.box[1]:g} constrains the vesicle "
+            "(enlarge -pf_box, or -pf_box auto)")
     if 'sharp_energy' in attrs:
         PETSc.Sys.Print(
             f"sharp interface: E {attrs['sharp_energy']:.6f}, relative error "

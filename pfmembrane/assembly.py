@@ -15,10 +15,10 @@ from .functionals import Functionals
 class Problem:
     """Energy and constraints of one scene on one grid, on distributed Vecs.
 
-    Collective. `targets` = (A0, V0, M0), or (A0, V0) on a half-box grid,
-    whose mirror plane makes the moment vanish. The unknowns are the free
-    nodal values (Dirichlet nodes are eliminated), in the layout's global
-    numbering.
+    Collective. `targets` = (A0, V0); on the full box the moment M = 0 is a
+    third constraint, on a half-box grid its mirror plane makes M vanish.
+    The unknowns are the free nodal values (Dirichlet nodes are eliminated),
+    in the layout's global numbering.
     """
 
     def __init__(self, grid, eps, k, c0, targets, zc):
@@ -27,10 +27,9 @@ class Problem:
         self.mpi = self.comm.tompi4py()
         self.eps = eps
         self.forms = Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
-        self.targets = np.asarray(targets, dtype=float)
+        moment = (0.0,) if grid.plane is None else ()
+        self.targets = np.array([*targets, *moment], dtype=float)
         self.ncon = len(self.targets)
-        if self.ncon != (2 if grid.plane is not None else 3):
-            raise ValueError("a half-box grid takes targets (A0, V0), a full box (A0, V0, M0)")
         self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
         self._ghosted = self.layout.create_ghosted()
         self.grad_V = self._to_global(self.forms.grad_V)

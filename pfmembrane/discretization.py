@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from . import maxent, nodes as nodesets, quadrature
 from .gram import Gram
-from .nodes import nodal_spacing
+from .nodes import nodal_spacing, nodal_spacings
 from .partition import Layout
 
 POINT_CHUNK = 16384  # quadrature points per max-ent evaluation: bounds the working memory
@@ -69,8 +69,8 @@ class Grid:
         self.comm, self.nodes, self.box = comm, nodes, tuple(box)
         self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
         self.plane = plane
-        self.h = nodal_spacing(nodes, plane=plane)
-        self.beta = locality(nodes, gamma, smoothing, plane)
+        self.h, smoothed = nodal_spacings(nodes, smoothing, plane)
+        self.beta = gamma / smoothed ** 2  # `locality`, from the triangulation h needs too
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)

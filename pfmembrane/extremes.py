@@ -41,14 +41,12 @@ import numpy as np
 from . import checkpoint, launch
 from .bench import machine, machine_line
 from .checkpoint import CheckpointError
+from .limit import BOUNDARY_TOL, boundary_phi
 from .sequence import converged
 from .tables import SCENE
 
 # Grid and eps of every case unless its options say otherwise (later options win).
 GRID = ('-pf_nodes', '3000', '-pf_box', '1.5,2', '-pf_eps', '0.06')
-# phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
-# then within about 6 eps of the sides where phi = -1 is imposed.
-BOUNDARY_TOL = 1e-3
 # A relative energy difference to the same scene in another box above this is a box effect:
 # the grid alone moves it far less (3978 and 6111 uniform nodes in the 1.5 x 2 box agree to
 # 1e-5 at eps = 0.05).
@@ -57,7 +55,6 @@ BOX_TOL = 5e-3
 OFF_BRANCH = 0.25
 # Seconds a run stopped at its time limit has to checkpoint before it is killed.
 GRACE = 60
-BOUNDARY_SAMPLES = 400
 
 EXPECT = {
     'converged': 'converges, resolved, clear of the box and on its branch',
@@ -321,22 +318,6 @@ def saved_record(case, out, argv):
         if not os.path.exists(path) or (parent and os.path.getmtime(parent) > os.path.getmtime(path)):
             return None
     return record
-
-
-def boundary_phi(ckpt, samples=BOUNDARY_SAMPLES):
-    """Largest phi_h on the lines one eps inside the sides r = Rb, z = 0, z = Zb.
-
-    Not collective. The nodes on those sides hold phi = -1 by construction; one eps inside,
-    phi_h shows a membrane pressed against the box.
-    """
-    from .limit import PhaseField
-    rb, zb = ckpt.box
-    d = float(ckpt.attrs['eps'])
-    s = np.linspace(0.0, 1.0, samples)
-    points = np.concatenate([np.column_stack([s * (rb - d), np.full(samples, d)]),
-                             np.column_stack([s * (rb - d), np.full(samples, zb - d)]),
-                             np.column_stack([np.full(samples, rb - d), d + s * (zb - 2 * d)])])
-    return float(np.max(PhaseField(ckpt)(points)))
 
 
 def level_set_shape(ckpt):

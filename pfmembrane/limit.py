@@ -35,6 +35,11 @@ from pfmembrane.discretization import folded_basis, locality
 from pfmembrane.maxent import interpolate
 from pfmembrane.plot import zero_contour
 
+# phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
+# then within about 6 eps of the sides where phi = -1 is imposed.
+BOUNDARY_TOL = 1e-3
+BOUNDARY_SAMPLES = 400
+
 __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "distance",
            "compare", "Extrapolation", "extrapolate", "main"]
 
@@ -212,6 +217,36 @@ def distance(curve, shape, centre=0.0):
                           / sum(np.sum(w) for w in weights)),
             "hausdorff": float(max(max(np.max(d) for d in near),
                                    np.max(back)))}
+
+
+def boundary_phi(ckpt, samples=BOUNDARY_SAMPLES):
+    """Largest phi_h on the lines one eps inside the sides r = Rb, z = 0, z = Zb.
+
+    Not collective. The nodes on those sides hold phi = -1 by construction; one eps inside,
+    phi_h shows a membrane pressed against the box. `ckpt` covers the full box.
+    """
+    rb, zb = ckpt.box
+    d = float(ckpt.attrs['eps'])
+    s = np.linspace(0.0, 1.0, samples)
+    points = np.concatenate([np.column_stack([s * (rb - d), np.full(samples, d)]),
+                             np.column_stack([s * (rb - d), np.full(samples, zb - d)]),
+                             np.column_stack([np.full(samples, rb - d), d + s * (zb - 2 * d)])])
+    return float(np.max(PhaseField(ckpt)(points)))
+
+
+def enclosed_volume(curve):
+    """Volume of the solid of revolution inside a level set.
+
+    Not collective. Each polyline of `curve` (from `level_set`) runs from the
+    axis to the axis, or is a loop off it; closing it adds nothing along
+    r = 0, so its volume is |pi int r^2 dz|, exact for straight segments.
+    The pieces' volumes are summed (no piece lies inside another).
+    """
+    total = 0.0
+    for piece in curve:
+        r, z = np.vstack([piece, piece[:1]]).T
+        total += abs(np.pi * np.sum((r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3 * np.diff(z)))
+    return total
 
 
 def compare(ckpt, samples=400):

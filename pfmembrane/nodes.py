@@ -123,17 +123,22 @@ def nodal_spacing(nodes, axis=True, smoothing=0, plane=None):
     to +0.03% of the hexagonal lattice's. On a lattice h is constant and the
     passes change nothing away from the box edges.
     """
+    return nodal_spacings(nodes, smoothing, plane, axis)[1]
+
+
+def nodal_spacings(nodes, smoothing, plane=None, axis=True):
+    """The raw and the smoothed h_a of `nodal_spacing`, from one triangulation."""
     if axis:
         full = with_mirrors(nodes, np.zeros(len(nodes)), np.inf, plane)[0]
-        return nodal_spacing(full, axis=False, smoothing=smoothing)[:len(nodes)]
+        return tuple(h[:len(nodes)] for h in nodal_spacings(full, smoothing, axis=False))
     indptr, neighbours = Delaunay(nodes).vertex_neighbor_vertices
     count = np.diff(indptr)
     owner = np.repeat(np.arange(len(nodes)), count)
     dist = np.linalg.norm(nodes[neighbours] - nodes[owner], axis=1)
-    h = np.bincount(owner, dist, minlength=len(nodes)) / count
+    raw = h = np.bincount(owner, dist, minlength=len(nodes)) / count
     for _ in range(smoothing):
         h = 0.5 * h + 0.5 * np.bincount(owner, h[neighbours], minlength=len(nodes)) / count
-    return h
+    return raw, h
 
 
 def spacing_peak(h, bins=128):

@@ -183,3 +183,12 @@ def test_cli_reports_an_unreadable_checkpoint(tmp_path, capsys):
 
     assert status == 1
     assert "no such file" in capsys.readouterr().err
+
+
+def test_enclosed_volume_of_a_sphere_and_a_torus():
+    t = np.linspace(0.0, np.pi, 401)
+    sphere = [np.column_stack([0.4 * np.sin(t), 1.0 + 0.4 * np.cos(t)])]
+    assert abs(limit.enclosed_volume(sphere) / (4 / 3 * np.pi * 0.4 ** 3) - 1) < 1e-4
+    s = np.linspace(0.0, 2 * np.pi, 801)[:-1]
+    torus = [np.column_stack([0.5 + 0.1 * np.cos(s), 1.0 + 0.1 * np.sin(s)])]
+    assert abs(limit.enclosed_volume(torus) / (2 * np.pi ** 2 * 0.5 * 0.1 ** 2) - 1) < 1e-4

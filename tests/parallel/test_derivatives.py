@@ -26,7 +26,7 @@ def problem(request):
     plane = BOX[1] / 2 if half else None
     grid = Grid(comm, xy, BOX, gamma=0.8, cutoff=1e-6, degree=4, plane=plane)
     A0, V0 = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
-    P = Problem(grid, EPS, 1.0, c0, (A0, V0) if half else (A0, V0, 0.0), BOX[1] / 2)
+    P = Problem(grid, EPS, 1.0, c0, (A0, V0), BOX[1] / 2)
     x = P.create_vec()
     lay = grid.layout
     own = lay.order[lay.start:lay.start + lay.nowned]

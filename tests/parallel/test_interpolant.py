@@ -35,7 +35,7 @@ def sampled(n):
     comm = PETSc.COMM_WORLD
     xy = nodes.uniform(BOX, n)
     grid = Grid(comm, xy, BOX)
-    P = Problem(grid, EPS, 1.0, 0.0, (0, 0, 0), ZC)
+    P = Problem(grid, EPS, 1.0, 0.0, (0, 0), ZC)
     x = P.create_vec()
     lay = grid.layout
     x.setArray(tanh_sphere(xy[lay.order[lay.start:lay.start + lay.nowned]]))

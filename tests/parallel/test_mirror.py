@@ -19,7 +19,7 @@ def functionals(half, branch):
     xy = nodes.uniform(BOX, N, half=half)
     plane = BOX[1] / 2 if half else None
     grid = Grid(PETSc.COMM_WORLD, xy, BOX, plane=plane)
-    P = Problem(grid, EPS, 1.0, 0.0, (A0, V0) if half else (A0, V0, 0.0), BOX[1] / 2)
+    P = Problem(grid, EPS, 1.0, 0.0, (A0, V0), BOX[1] / 2)
     x = P.create_vec()
     lay = grid.layout
     a, c = spheroid_axes(A0, V0, branch)
