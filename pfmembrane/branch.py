@@ -24,7 +24,6 @@ import argparse
 import glob
 import math
 import os
-import re
 import subprocess
 import sys
 import time
@@ -35,6 +34,7 @@ import numpy as np
 from . import checkpoint, launch
 from .nodes import nodal_spacing, uniform
 from .options import BRANCHES
+from .sequence import option_of
 from .sizing import required_box
 
 SCENE = os.path.join('options', 'branch', '{}.opts')
@@ -48,11 +48,10 @@ SHARP_DV = 0.01         # v spacing of the sharp-interface line of the figure
 
 def scene_value(scene, name):
     """The last value an options file gives to -pf_<name>, as a float."""
-    with open(scene) as f:
-        found = re.findall(rf'^\s*-pf_{name}\s+(\S+)', f.read(), flags=re.M)
-    if not found:
+    value = option_of(scene, f'pf_{name}')
+    if value is None:
         sys.exit(f"{scene}: names no -pf_{name}")
-    return float(found[-1])
+    return float(value)
 
 
 def volumes(start, stop, step):
@@ -298,7 +297,9 @@ def plot(directory, dpi=150):
                     label=f"{branch}, phase field (eps = {a['eps']:g}, N = {len(ckpts[0].nodes)})")
         if not ok.all():
             energy.plot(v[~ok], e[~ok], 'o', mfc='none', color=colour, label=f"{branch}, not converged")
-        fine = np.linspace(min(v_all), 1.0, int(round((1.0 - min(v_all)) / SHARP_DV)) + 1)
+        # Rounded, so that the checkpoints' own v hit the cache of the sharp solves.
+        count = int(round((1.0 - min(v_all)) / SHARP_DV)) + 1
+        fine = np.round(np.linspace(min(v_all), 1.0, count), 10)
         sharp_line = [_sharp(reference, branch, x, scene) for x in fine]
         energy.plot(fine, [np.nan if s is None else s.energy for s in sharp_line], '-',
                     color=colour, label=f"{branch}, sharp interface")

@@ -23,7 +23,7 @@ from .functionals import F_E
 from .options import Params
 
 VARIANTS = ('paper box', 'paper half box', 'auto box', 'auto half box')
-PAPER_BOX = (1.5, 2.0)
+PAPER_BOX = Params().box
 
 
 def configurations(args):
