@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 from pfmembrane import checkpoint, sharp
 from pfmembrane.discretization import folded_basis, locality
 from pfmembrane.maxent import interpolate
-from pfmembrane.plot import zero_contour
+from matplotlib.figure import Figure
 
 # phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
 # then within about 6 eps of the sides where phi = -1 is imposed.
@@ -46,6 +46,7 @@ __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "distance",
 # Attributes a checkpoint needs, beyond nodes and phi, for `compare`.
 SCENE_ATTRS = ("branch", "reduced_volume", "c0", "radius", "k", "gamma",
                "cutoff", "box", "energy")
+_SEED_STEP = 1.0         # raster spacing of the seed contour, in units of eps
 _NEWTON_STEPS = 20       # projections onto phi_h = 0; 3-5 suffice
 _NEWTON_TOL = 1e-10      # last step, relative to the box size
 _DENSE = 16              # spline points per polyline segment in `distance`
@@ -134,9 +135,9 @@ def level_set(ckpt, samples=400):
     """The membrane phi_h = 0 of a checkpoint as polylines in (r, z).
 
     Not collective.  The phase field is the max-ent approximant phi_h, not
-    the nodal values, which it does not interpolate.  The zero contour of
-    the piecewise-linear interpolant of the nodal values on their Delaunay
-    triangulation (`pfmembrane.plot.zero_contour`) is resampled uniformly
+    the nodal values, which it does not interpolate (on a graded grid they
+    can oscillate and cross zero away from the membrane).  The zero contour
+    of phi_h sampled on a raster of spacing eps is resampled uniformly
     in arc length and every point is then projected onto phi_h = 0 by
     Newton steps along grad phi_h, x <- x - phi_h grad phi_h / |grad phi_h|^2.
 
@@ -157,18 +158,19 @@ def level_set(ckpt, samples=400):
     Raises
     ------
     ValueError
-        If the nodal values have no zero contour.
+        If phi_h has no zero contour.
     RuntimeError
         If the projection does not converge.
     """
-    pieces = zero_contour(ckpt)
+    field = PhaseField(ckpt)
+    pieces = _raster_contour(field, np.asarray(ckpt.attrs["box"], dtype=float),
+                             _SEED_STEP * float(ckpt.attrs["eps"]))
     if not pieces:
         raise ValueError("the phase field has no zero level set")
     lengths = np.array([_arc_length(piece)[-1] for piece in pieces])
     counts = np.maximum(2, np.rint(samples * lengths / lengths.sum())).astype(int)
     points = np.vstack([_resample(piece, count)
                         for piece, count in zip(pieces, counts)])
-    field = PhaseField(ckpt)
     scale = _NEWTON_TOL * np.max(np.asarray(ckpt.attrs["box"], dtype=float))
     for _ in range(_NEWTON_STEPS):
         phi, grad = field(points, gradient=True)
@@ -181,6 +183,17 @@ def level_set(ckpt, samples=400):
             return np.split(points, np.cumsum(counts)[:-1])
     raise RuntimeError(f"the projection onto phi_h = 0 did not converge in "
                        f"{_NEWTON_STEPS} Newton steps")
+
+
+def _raster_contour(field, box, step):
+    """Polylines of the zero contour of `field` on a raster of the box."""
+    r = np.linspace(0.0, box[0], int(np.ceil(box[0] / step)) + 1)
+    z = np.linspace(0.0, box[1], int(np.ceil(box[1] / step)) + 1)
+    R, Z = np.meshgrid(r, z)
+    phi = field(np.column_stack([R.ravel(), Z.ravel()])).reshape(R.shape)
+    # A figure that is never shown does the contouring: the caller's stay untouched.
+    contours = Figure().add_subplot().contour(r, z, phi, levels=[0.0])
+    return [line for line in contours.allsegs[0] if len(line) > 1]
 
 
 def distance(curve, shape, centre=0.0):

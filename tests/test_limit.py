@@ -92,6 +92,24 @@ def test_level_set_is_the_zero_of_the_interpolant(sphere):
     assert np.ptp(radial) < 1e-3 * h
 
 
+def test_level_set_ignores_nodal_oscillations(tmp_path, sphere):
+    # Nodal values that cross zero away from the membrane, as on graded grids
+    # (phi_h, a local average, stays near -1 there): the level set is still
+    # the membrane alone.
+    nodes, phi = sphere.nodes, np.array(sphere.phi)
+    far = np.argsort(np.hypot(nodes[:, 0] - 0.5, nodes[:, 1] - 0.9))[:1]
+    phi[far] = 0.5
+    checkpoint.write(tmp_path / "odd.h5", nodes, phi, dict(sphere.attrs))
+    odd = checkpoint.read(tmp_path / "odd.h5")
+    field = limit.PhaseField(odd)
+    assert field(nodes[far]) < -0.5
+
+    curve = limit.level_set(odd, samples=300)
+    assert len(curve) == 1
+    radial = np.hypot(curve[0][:, 0], curve[0][:, 1] - ZC) - R
+    assert np.max(np.abs(radial)) < 0.05 * spacing(odd)
+
+
 def test_interpolant_gradient_matches_differences(sphere):
     field = limit.PhaseField(sphere)
     points = np.array([[0.0, ZC + R], [0.2, 0.6], [0.25, 0.3]])
