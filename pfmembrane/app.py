@@ -12,7 +12,7 @@ from . import adapt, checkpoint, limit, nodes as nodesets, options
 from .assembly import Problem
 from .nodes import spacing_peak
 from .discretization import Grid, locality
-from .initial import spheroid_phi
+from .initial import rescaled_phi, spheroid_phi
 from .solver import Solver, SolveError
 from .faults import Interrupted
 
@@ -33,8 +33,8 @@ def resolved_eps(grid):
 
 def start_nodes(p, ck, comm):
     """Nodes, nodal phi and multipliers (None, None from a uniform grid) of the
-    start: those of the restart checkpoint `ck`, or with -pf_adapt its nodes
-    relocated and its phi transferred to them."""
+    start: those of the restart checkpoint `ck`, its profile rescaled to -pf_eps,
+    or with -pf_adapt its nodes relocated and its phi transferred to them."""
     if ck is None:
         return nodesets.uniform(p.box, p.nodes, half=p.symmetric), None, None
     if ck.symmetric != p.symmetric:
@@ -44,7 +44,7 @@ def start_nodes(p, ck, comm):
     names = ('nu_area', 'nu_volume', 'nu_moment')[:2 if p.symmetric else 3]
     nu = np.array([ck.attrs.get(k, 0.0) for k in names])
     if not p.adapt:
-        return ck.nodes, ck.phi, nu
+        return ck.nodes, rescaled_phi(ck.phi, float(ck.attrs['eps']), p.eps), nu
     stage = PETSc.Log.Stage('pfAdapt')
     stage.push()
     beta = locality(ck.nodes, ck.attrs['gamma'], int(ck.attrs.get('spacing_smoothing', 0)),
@@ -56,7 +56,7 @@ def start_nodes(p, ck, comm):
                     f"(movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
                     f"{info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s")
-    return xy, phi, nu
+    return xy, rescaled_phi(phi, float(ck.attrs['eps']), p.eps), nu
 
 
 def phase_field_checks(comm, xy, phi, attrs):

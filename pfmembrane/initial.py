@@ -46,3 +46,19 @@ def spheroid_phi(points, a, c, zc, eps):
     # Far from the surface the linearization overshoots; the sign is what matters there.
     d = np.clip(d, -min(a, c), min(a, c))
     return np.tanh(d / (np.sqrt(2.0) * eps))
+
+
+def rescaled_phi(phi, eps_from, eps_to):
+    """A solved field for eps_from as a start for eps_to: the tanh profile
+    phi = tanh(d / (sqrt 2 eps)) narrowed or widened about the same level set.
+
+    Unchanged at |phi| >= 1 (the imposed -1, overshoots). Without it the
+    bending energy of the old profile is O(eps_from / eps_to - 1) / eps_to too
+    large and the least-squares multipliers start orders of magnitude off.
+    """
+    phi = np.array(phi, dtype=float)
+    if eps_from == eps_to:  # a restart at its own eps continues bit for bit
+        return phi
+    inside = np.abs(phi) < 1.0
+    phi[inside] = np.tanh(np.arctanh(phi[inside]) * (eps_from / eps_to))
+    return phi

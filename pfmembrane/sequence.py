@@ -74,9 +74,9 @@ def run(steps, scene, nprocs, force=False):
 
 def table(steps, walls):
     """Markdown rows: one per step, with the paper's numbers beside ours."""
-    rows = ['| step | grid | nodes | eps | eps_min | E | paper | diff | E finest uniform (paper) | diff '
+    rows = ['| step | grid | nodes | gamma | eps | eps_min | E | paper | diff | E finest uniform (paper) | diff '
             '| error vs sharp | paper (Table 4) | max phi | its (1+2) | converged | run s | wall s |',
-            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     total = 0.0
     for step in steps:
         path = output_of(step)
@@ -93,7 +93,7 @@ def table(steps, walls):
         wall = walls.get(step)
         total += float(a['wall_time'])
         rows.append(
-            f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {eps:g} | {a['eps_min']:.4f} "
+            f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {float(a['gamma']):g} | {eps:g} | {a['eps_min']:.4f} "
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
             f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
             f"| {_its(a['stage1_iterations'])}+{_its(a['stage2_iterations'])} | {int(a['converged'])} "

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from pfmembrane import nodes, quadrature
-from pfmembrane.initial import spheroid_area, spheroid_axes
+from pfmembrane.initial import rescaled_phi, spheroid_area, spheroid_axes
 
 BOX = (1.5, 2.0)
 
@@ -98,3 +98,15 @@ def test_spacing_smoothing_removes_scatter_and_keeps_a_lattice():
     raw, smooth = nodes.nodal_spacing(y), nodes.nodal_spacing(y, smoothing=3)
     assert abs(smooth.mean() / raw.mean() - 1) < 0.01           # the scale is kept
     assert smooth[far].std() < 0.5 * raw[far].std()              # the scatter is not
+
+
+def test_rescaled_phi_narrows_the_tanh_profile_about_its_zero():
+    d = np.linspace(-0.2, 0.2, 81)
+    phi = np.tanh(d / (np.sqrt(2.0) * 0.015))
+    phi[[0, -1]] = [-1.0, 1.0004]        # an imposed value and an overshoot
+
+    out = rescaled_phi(phi, 0.015, 0.01)
+
+    assert np.allclose(out[1:-1], np.tanh(d[1:-1] / (np.sqrt(2.0) * 0.01)), atol=1e-12)
+    assert out[0] == -1.0 and out[-1] == 1.0004
+    assert np.array_equal(rescaled_phi(phi, 0.01, 0.01), phi)
