@@ -110,7 +110,9 @@ def run(comm):
                     f"cutoff={p.cutoff:g} quad={p.quad_degree} stage1={p.stage1} ranks={size}"
                     f"{' half box (mirror z=' + format(p.zc, 'g') + ')' if p.symmetric else ''}")
 
+    t_adapt = time.perf_counter()
     xy, phi0, nu0 = start_nodes(p, ck, comm)
+    t_adapt = time.perf_counter() - t_adapt if p.adapt else np.nan
     basis_stage = PETSc.Log.Stage('pfBasis')
     basis_stage.push()
     grid = Grid(comm, xy, p.box, p.gamma, p.cutoff, p.quad_degree, p.spacing_smoothing,
@@ -189,7 +191,7 @@ def run(comm):
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
                  factorizations=solver.factorizations, adapt=p.adapt, parent=p.restart,
-                 time_setup=t_setup,
+                 time_setup=t_setup, time_adapt=t_adapt,
                  time_stage1=solver.stats.get('stage1', {}).get('time', np.nan),
                  time_stage2=solver.stats.get('stage2', {}).get('time', np.nan),
                  time_assembly=event_seconds(comm, ASSEMBLY_EVENTS, solve_stages),

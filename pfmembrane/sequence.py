@@ -18,6 +18,7 @@ import sys
 import time
 
 import h5py
+import numpy as np
 
 from . import launch
 from .paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
@@ -75,8 +76,9 @@ def run(steps, scene, nprocs, force=False):
 def table(steps, walls):
     """Markdown rows: one per step, with the paper's numbers beside ours."""
     rows = ['| step | grid | nodes | gamma | eps | eps_min | E | paper | diff | E finest uniform (paper) | diff '
-            '| error vs sharp | paper (Table 4) | max phi | its (1+2) | converged | run s | wall s |',
-            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            '| error vs sharp | paper (Table 4) | max phi | its (1+2) | converged | set-up s (CVT) | solve s '
+            '| peak MB/rank | run s | wall s |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     total = 0.0
     for step in steps:
         path = output_of(step)
@@ -97,8 +99,16 @@ def table(steps, walls):
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
             f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
             f"| {_its(a['stage1_iterations'])}+{_its(a['stage2_iterations'])} | {int(a['converged'])} "
-            f"| {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
+            f"| {_setup(a)} | {np.nansum([a['time_stage1'], a['time_stage2']]):.1f} "
+            f"| {a['peak_rss_mb']:.0f} | {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
     return rows, total
+
+
+def _setup(a):
+    """Set-up seconds (reading, relocation, basis), with the relocation's own
+    where a grid was made and recorded."""
+    cvt = a.get('time_adapt', np.nan)
+    return f"{a['time_setup']:.1f}" + ('' if np.isnan(cvt) else f" ({cvt:.1f})")
 
 
 def _nominal(n):
