@@ -52,9 +52,8 @@ def rescaled_phi(phi, eps_from, eps_to):
     """A solved field for eps_from as a start for eps_to: the tanh profile
     phi = tanh(d / (sqrt 2 eps)) narrowed or widened about the same level set.
 
-    Unchanged at |phi| >= 1 (the imposed -1, overshoots). Without it the
-    bending energy of the old profile is O(eps_from / eps_to - 1) / eps_to too
-    large and the least-squares multipliers start orders of magnitude off.
+    Unchanged at |phi| >= 1 (the imposed -1, overshoots). The old profile,
+    too wide for a smaller eps_to, leaves the Newton iteration a longer way.
     """
     phi = np.array(phi, dtype=float)
     if eps_from == eps_to:  # a restart at its own eps continues bit for bit
