@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import matplotlib
 import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 from matplotlib.path import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -33,7 +34,6 @@ from scipy.spatial import cKDTree
 from pfmembrane import checkpoint, sharp
 from pfmembrane.discretization import folded_basis, locality
 from pfmembrane.maxent import interpolate
-from matplotlib.figure import Figure
 
 # phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
 # then within about 6 eps of the sides where phi = -1 is imposed.
