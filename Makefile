@@ -13,7 +13,7 @@ DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy 
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-discocyte-half bench bench-basis bench-scenes branches figures extremes clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half bench bench-basis bench-scenes branches figures extremes clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -26,6 +26,7 @@ help:
 	@echo "make adapt-dumbbell-12271  the dumbbell on 12,271 adapted nodes, to eps 0.007"
 	@echo "make adapt-discocyte-half  the 6,124-node discocyte sequence on the half box"
 	@echo "make adapt-dumbbell-12271-half  the 12,271-node dumbbell sequence on the half box, to eps 0.01"
+	@echo "make adapt-24597-half  the 24,597-node discocyte sequence on the half box, to eps 0.005"
 	@echo "make adapt    all five sequences, tables under runs/adapt/"
 	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
 	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
@@ -81,6 +82,8 @@ adapt-discocyte-half: install
 	$(SEQUENCE) options/adapt/discocyte_half --scene options/discocyte.opts
 adapt-dumbbell-12271-half: install
 	$(SEQUENCE) options/adapt/dumbbell_12271_half --scene options/dumbbell.opts
+adapt-24597-half: install
+	$(SEQUENCE) options/adapt/discocyte_24597_half --scene options/discocyte.opts
 adapt: adapt-discocyte adapt-dumbbell adapt-12271 adapt-24597 adapt-dumbbell-12271
 
 bench: install
