@@ -13,7 +13,7 @@ from scipy.ndimage import map_coordinates
 
 from . import cvt, maxent
 from .discretization import folded_basis
-from .nodes import dirichlet_mask, nodal_spacing, spacing_peak
+from .nodes import dirichlet_mask, nodal_spacing, raster_axes, spacing_peak
 
 RASTER = 0.5  # raster spacing / smallest nodal spacing of the old grid
 
@@ -26,9 +26,7 @@ def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
     share of the raster rows. `beta` is the locality phi_h was solved with.
     """
     step = RASTER * spacing_peak(nodal_spacing(nodes, plane=plane))
-    z0 = plane or 0.0
-    r = np.linspace(0.0, box[0], int(np.ceil(box[0] / step)) + 1)
-    z = np.linspace(z0, box[1], int(np.ceil((box[1] - z0) / step)) + 1)
+    r, z = raster_axes(box, step, plane or 0.0)
     mine = np.array_split(np.arange(len(z)), comm.Get_size())[comm.Get_rank()]
     R, Z = np.meshgrid(r, z[mine], indexing='xy')
     points = np.column_stack([R.ravel(), Z.ravel()])

@@ -43,8 +43,14 @@ def start_nodes(p, ck, comm):
             f"{'add' if ck.symmetric else 'remove'} -pf_symmetric to continue it")
     names = ('nu_area', 'nu_volume', 'nu_moment')[:2 if p.symmetric else 3]
     nu = np.array([ck.attrs.get(k, 0.0) for k in names])
-    if not p.adapt:
-        return ck.nodes, rescaled_phi(ck.phi, float(ck.attrs['eps']), p.eps), nu
+    xy, phi = ck.nodes, ck.phi
+    if p.adapt:
+        xy, phi = relocated(p, ck, comm)
+    return xy, rescaled_phi(phi, float(ck.attrs['eps']), p.eps), nu
+
+
+def relocated(p, ck, comm):
+    """The checkpoint's nodes relocated by CVT (-pf_adapt) and its phi transferred."""
     stage = PETSc.Log.Stage('pfAdapt')
     stage.push()
     beta = locality(ck.nodes, ck.attrs['gamma'], int(ck.attrs.get('spacing_smoothing', 0)),
@@ -56,7 +62,7 @@ def start_nodes(p, ck, comm):
                     f"(movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
                     f"{info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s")
-    return xy, rescaled_phi(phi, float(ck.attrs['eps']), p.eps), nu
+    return xy, phi
 
 
 def phase_field_checks(comm, xy, phi, attrs):
@@ -164,7 +170,7 @@ def run(comm):
             PETSc.Sys.Print(
                 f"{name[2:].lower()}: {s.get('outer', s.get('iterations'))} its"
                 f"{' (' + str(s['inner']) + ' inner)' if 'inner' in s else ''}, E {s['energy']:.8f}, "
-                f"constraint residual {s['residual']:.2e}, max|phi| {solver.max_phi(x):.4f}, "
+                f"constraint residual {s['residual']:.2e}, max|phi| {problem.max_abs_phi(x):.4f}, "
                 f"{s['time']:.2f} s")
     except (SolveError, Interrupted) as e:
         converged, message = False, str(e)
@@ -179,7 +185,7 @@ def run(comm):
     if comm.getRank() == 0:
         phi_nodes = np.full(len(xy), -1.0)
         phi_nodes[lay.order] = values
-    max_phi = solver.max_phi(x)
+    max_phi = problem.max_abs_phi(x)
     attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=p.eps,
                  k=p.k, c0=p.c0, gamma=p.gamma, nu_area=solver.nu[0], nu_volume=solver.nu[1],
                  nu_moment=solver.nu[2] if solver.ncon == 3 else 0.0, symmetric=int(p.symmetric),

@@ -80,7 +80,9 @@ class Problem:
         return v
 
     def max_abs_phi(self, x):
-        """max |phi_h| over every rank's quadrature points."""
+        """max |phi_h| over every rank's quadrature points. Not the nodal values: a
+        max-ent basis does not interpolate, and where nodes crowd (a CVT along a
+        mirror plane) nodal values can oscillate while phi_h stays smooth."""
         o = self.forms.ops
         u = o.B0 @ self.local(x) + o.b0
         return self.mpi.allreduce(float(np.abs(u).max(initial=0.0)), op=MPI.MAX)

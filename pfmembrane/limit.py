@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from pfmembrane import checkpoint, sharp
 from pfmembrane.discretization import folded_basis, locality
 from pfmembrane.maxent import interpolate
+from pfmembrane.nodes import raster_axes
 
 # phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
 # then within about 6 eps of the sides where phi = -1 is imposed.
@@ -187,8 +188,7 @@ def level_set(ckpt, samples=400):
 
 def _raster_contour(field, box, step):
     """Polylines of the zero contour of `field` on a raster of the box."""
-    r = np.linspace(0.0, box[0], int(np.ceil(box[0] / step)) + 1)
-    z = np.linspace(0.0, box[1], int(np.ceil(box[1] / step)) + 1)
+    r, z = raster_axes(box, step)
     R, Z = np.meshgrid(r, z)
     phi = field(np.column_stack([R.ravel(), Z.ravel()])).reshape(R.shape)
     # A figure that is never shown does the contouring: the caller's stay untouched.

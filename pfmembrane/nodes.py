@@ -141,6 +141,13 @@ def nodal_spacings(nodes, smoothing, plane=None, axis=True):
     return raw, h
 
 
+def raster_axes(box, step, z0=0.0):
+    """Axes (r, z) of the regular raster of [0, Rb] x [z0, Zb] with spacing at most `step`."""
+    r = np.linspace(0.0, box[0], int(np.ceil(box[0] / step)) + 1)
+    z = np.linspace(z0, box[1], int(np.ceil((box[1] - z0) / step)) + 1)
+    return r, z
+
+
 def spacing_peak(h, bins=128):
     """Smallest-spacing peak ``h_min`` of the distribution of ``h``.
 

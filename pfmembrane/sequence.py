@@ -74,12 +74,13 @@ def run(steps, scene, nprocs, force=False):
 
 
 def table(steps, walls):
-    """Markdown rows: one per step, with the paper's numbers beside ours."""
+    """Markdown rows, one per step with the paper's numbers beside ours; the sum
+    of the runs' wall times; the rank counts they ran on."""
     rows = ['| step | grid | nodes | gamma | eps | eps_min | E | paper | diff | E finest uniform (paper) | diff '
             '| error vs sharp | paper (Table 4) | max phi | its (1+2) | converged | set-up s (CVT) | solve s '
             '| peak MB/rank | run s | wall s |',
             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
-    total = 0.0
+    total, ranks = 0.0, set()
     for step in steps:
         path = output_of(step)
         if not os.path.exists(path):
@@ -94,6 +95,7 @@ def table(steps, walls):
         table4 = SHARP_ERROR.get(_nominal(int(a['n_nodes'])), {}).get(eps) if branch == 'oblate' else None
         wall = walls.get(step)
         total += float(a['wall_time'])
+        ranks.add(int(a['n_procs']))
         rows.append(
             f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {float(a['gamma']):g} | {eps:g} | {a['eps_min']:.4f} "
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
@@ -101,7 +103,7 @@ def table(steps, walls):
             f"| {_its(a['stage1_iterations'])}+{_its(a['stage2_iterations'])} | {int(a['converged'])} "
             f"| {_setup(a)} | {np.nansum([a['time_stage1'], a['time_stage2']]):.1f} "
             f"| {a['peak_rss_mb']:.0f} | {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
-    return rows, total
+    return rows, total, sorted(ranks)
 
 
 def _setup(a):
@@ -138,6 +140,8 @@ def main(argv=None):
     ap.add_argument('--out', default=None, help='table path (default runs/adapt/<name>.md)')
     ap.add_argument('--report', action='store_true',
                     help='only write the table of the checkpoints that exist, run nothing')
+    ap.add_argument('--note', default='',
+                    help='a sentence for the header: how the machine was shared, reruns')
     args = ap.parse_args(argv)
     steps = sorted(glob.glob(os.path.join(args.directory, '*.opts')))
     if not steps:
@@ -145,13 +149,15 @@ def main(argv=None):
     t0 = time.perf_counter()
     walls = {} if args.report else run(steps, args.scene, args.np, args.force)
     elapsed = time.perf_counter() - t0
-    rows, total = table(steps, walls)
+    rows, total, ranks = table(steps, walls)
     name = os.path.basename(os.path.normpath(args.directory))
     out = args.out or os.path.join('runs', 'adapt', name + '.md')
     os.makedirs(os.path.dirname(out), exist_ok=True)
     with open(out, 'w') as f:
-        f.write(f"Adaptive sequence `{args.directory}` (scene `{args.scene}`), {args.np} MPI ranks, "
-                f"{os.cpu_count()} cores. Regenerate: `python -m pfmembrane.sequence {args.directory} "
+        f.write(f"Adaptive sequence `{args.directory}` (scene `{args.scene}`), "
+                f"{'/'.join(map(str, ranks))} MPI ranks, {os.cpu_count()} cores. "
+                + (args.note.rstrip('.') + '. ' if args.note else '')
+                + f"Regenerate: `python -m pfmembrane.sequence {args.directory} "
                 f"--scene {args.scene} --force`.\n\n")
         f.write('\n'.join(rows) + '\n\n')
         f.write(f"Sum of the runs' wall times: {total:.1f} s"

@@ -67,12 +67,6 @@ class Solver:
         rhs = np.array([c.dot(self.gE) for c in self.C])
         return np.linalg.solve(G, rhs)
 
-    def max_phi(self, x):
-        """max |phi_h| over the quadrature points. Not the nodal values: a max-ent
-        basis does not interpolate, and where nodes crowd (a CVT along a mirror
-        plane) nodal values can oscillate while phi_h stays smooth."""
-        return self.P.max_abs_phi(x)
-
     def row(self, stage, it, vals, res, gnorm):
         if self.p.monitor:
             rel = np.abs(res) / self.scale

@@ -158,6 +158,22 @@ def test_restart_reaches_the_same_answer(runs):
     assert a['stage1_iterations'] <= 3  # it starts at the answer
 
 
+def test_adapted_restart_at_a_smaller_eps(runs):
+    # CVT relocation of the restart's nodes, its phi transferred and narrowed to the new eps.
+    d, res = runs
+    path = str(d / 'adapted.h5')
+    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', res[2],
+              '-pf_adapt', '10', '-pf_eps', '0.05', '-pf_output', path)
+    assert out.returncode == 0, out.stderr
+    assert 'adapt: CVT f=10' in out.stdout
+    a, _ = _energy(path)
+    start = _energy(res[2])[0]
+    assert a['converged'] == 1 and a['eps'] == 0.05
+    assert a['n_nodes'] == start['n_nodes']
+    assert 0.0 < a['time_adapt'] < a['time_setup']
+    assert a['energy'] < start['energy']  # a thinner interface, the sharp limit below
+
+
 def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy(runs, tmp_path):
     _, res = runs
     stopped = str(tmp_path / 'stopped.h5')
