@@ -148,7 +148,9 @@ def run(comm):
         x.setArray(phi0[own])
 
     solver = Solver(problem, p)
-    stages = [('pfStage1', solver.stage1), ('pfStage2', solver.stage2)]
+    # a solved checkpoint's multipliers start stage 1 better than a least-squares fit
+    solved_nu = nu0 if ck is not None and ck.attrs.get('converged', 0) else None
+    stages = [('pfStage1', lambda v: solver.stage1(v, solved_nu)), ('pfStage2', solver.stage2)]
     if p.stage1 == 'none':
         stages = [('pfStage2', solver.stage2_first)]
         if nu0 is None:

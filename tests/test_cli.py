@@ -174,6 +174,40 @@ def test_adapted_restart_at_a_smaller_eps(runs):
     assert a['energy'] < start['energy']  # a thinner interface, the sharp limit below
 
 
+def test_a_restart_at_a_smaller_eps_keeps_its_multipliers(tmp_path):
+    # The solved multipliers start stage 1 and its first pass converges before the
+    # update: one outer iteration, the multipliers already at the answer's. The
+    # least-squares start took two, through nu_A 34 (answer 11.6).
+    grid = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '2500']
+    start, path = str(tmp_path / 'start.h5'), str(tmp_path / 'eps0.06.h5')
+    assert pfm(*grid, '-pf_eps', '0.075', '-pf_output', start).returncode == 0
+    out = pfm(*grid, '-pf_eps', '0.06', '-pf_restart', start, '-pf_monitor',
+              '-pf_output', path)
+    assert out.returncode == 0, out.stderr
+    assert 'stage1: 1 its' in out.stdout
+    row = [line.split() for line in out.stdout.splitlines() if line.startswith('  AL')][0]
+    a, _ = _energy(path)
+    assert a['converged'] == 1
+    assert abs(float(row[row.index('nuA') + 1]) / a['nu_area'] - 1) < 1e-3
+    assert abs(float(row[row.index('nuV') + 1]) / a['nu_volume'] - 1) < 1e-3
+
+
+def test_a_failed_stage_2_keeps_the_better_of_its_start_and_end(tmp_path):
+    # Steps of three times Newton's from a coarse stage 1 raise |F|: the checkpoint
+    # holds the stage-1 state, not the last step.
+    path = str(tmp_path / 'failed.h5')
+    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_stage1_rtol', '0.5',
+              '-stage2_snes_max_it', '1', '-stage2_snes_linesearch_damping', '3',
+              '-stage2_snes_monitor', '-pf_output', path, n=1)
+    assert out.returncode == 1
+    norms = [float(line.split()[-1]) for line in out.stdout.splitlines() if 'SNES Function' in line]
+    assert len(norms) == 2 and norms[1] > norms[0]
+    stage1 = float(out.stdout.split('stage1:')[1].split(' E ')[1].split(',')[0])
+    a, _ = _energy(path)
+    assert a['converged'] == 0
+    assert abs(a['energy'] - stage1) < 1e-7
+
+
 def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy(runs, tmp_path):
     _, res = runs
     stopped = str(tmp_path / 'stopped.h5')
