@@ -92,7 +92,9 @@ def table(steps, walls):
         paper = ADAPTED.get((branch, grid), UNIFORM.get((branch, int(a['n_nodes'])), {})).get(eps)
         fine = UNIFORM[(branch, FINEST)].get(eps)
         sharp = 100 * (energy / SHARP[branch] - 1)
-        table4 = SHARP_ERROR.get(_nominal(int(a['n_nodes'])), {}).get(eps) if branch == 'oblate' else None
+        # a half box holds half the nodes of the full-box grid it stands for
+        nominal = _nominal(int(a['n_nodes']) * (2 if a.get('symmetric', 0) else 1))
+        table4 = SHARP_ERROR.get(nominal, {}).get(eps) if branch == 'oblate' else None
         wall = walls.get(step)
         total += float(a['wall_time'])
         ranks.add(int(a['n_procs']))
