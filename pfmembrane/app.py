@@ -149,10 +149,10 @@ def run(comm):
 
     solver = Solver(problem, p)
     # a solved checkpoint's multipliers start stage 1 better than a least-squares fit
-    solved_nu = nu0 if ck is not None and ck.attrs.get('converged', 0) else None
+    solved_nu = nu0 if ck is not None and ck.attrs.get('converged') else None
     stages = [('pfStage1', lambda v: solver.stage1(v, solved_nu)), ('pfStage2', solver.stage2)]
     if p.stage1 == 'none':
-        stages = [('pfStage2', solver.stage2_first)]
+        stages = [('pfStage2', lambda v: solver.stage2_first(v, solved_nu))]
         if nu0 is None:
             solver.evaluate(x)
             nu0 = solver.least_squares_multipliers()

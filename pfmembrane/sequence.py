@@ -89,7 +89,7 @@ def table(steps, walls):
             a = dict(f.attrs)
         branch, eps, energy = str(a['branch']), round(float(a['eps']), 6), float(a['energy'])
         grid = os.path.basename(path).split('_eps')[0]
-        paper = ADAPTED.get((branch, grid), UNIFORM.get((branch, int(a['n_nodes'])), {})).get(eps)
+        paper = ADAPTED.get((branch, grid), {}).get(eps)
         fine = UNIFORM[(branch, FINEST)].get(eps)
         sharp = 100 * (energy / SHARP[branch] - 1)
         # a half box holds half the nodes of the full-box grid it stands for

@@ -110,7 +110,9 @@ class Solver:
             rel = np.abs(res) / self.scale
             self.nu = self.nu - res / mu
             g = self.combine(grad_L, self.nu).norm()
-            gtol = 0.1 * g if gtol is None else min(gtol, 0.1 * g)
+            # after the first pass (a warm-up, or a restart's converged one) the
+            # tolerance follows |grad L|
+            gtol = 0.1 * g if outer == 1 else min(gtol, 0.1 * g)
             self.row('AL', outer, vals, res, g)
             if rel.max() < self.p.stage1_rtol:
                 break
@@ -219,9 +221,10 @@ class Solver:
         return tao.getIterationNumber()
 
     # -- stage 2 ---------------------------------------------------------------
-    def stage2_first(self, x):
+    def stage2_first(self, x, solved_nu=None):
         """Stage 2 straight from x and the multipliers (a restart near its answer);
-        should it fail, both stages again from the same start."""
+        should it fail, both stages again from the same start, stage 1 from
+        `solved_nu` as in `stage1`."""
         x0, nu0 = x.copy(), self.nu.copy()
         try:
             return self.stage2(x)
@@ -229,7 +232,7 @@ class Solver:
             self.print(f"stage2: {e}; both stages from the restart instead")
         x0.copy(x)
         self.nu = nu0
-        self.stage1(x)
+        self.stage1(x, solved_nu)
         return self.stage2(x)
 
     def stage2(self, x):
