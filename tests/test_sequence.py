@@ -1,0 +1,82 @@
+"""The adaptive-sequence driver: steps run in order and restart from each other,
+converged steps are reused, a step whose start failed is skipped, and the table
+compares each checkpoint with the paper's column for its grid."""
+import os
+
+import h5py
+import pytest
+
+from pfmembrane import checkpoint, sequence
+from pfmembrane.paper import SHARP, SHARP_ERROR
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'
+
+
+def steps(tmp):
+    """A uniform solve, a CVT relocation restarting from it, and a step whose
+    start never converged."""
+    files = {
+        '01_U_eps0.06.opts': f'{SMALL}-pf_output {tmp}/U_eps0.06.h5\n',
+        '02_A_eps0.06.opts': (f'{SMALL}-pf_stage1 none\n-pf_restart {tmp}/U_eps0.06.h5\n'
+                              f'-pf_adapt 10\n-pf_output {tmp}/A_eps0.06.h5\n'),
+        '03_B_eps0.05.opts': (f'{SMALL}-pf_restart {tmp}/never.h5\n-pf_eps 0.05\n'
+                              f'-pf_output {tmp}/B_eps0.05.h5\n'),
+    }
+    for name, text in files.items():
+        (tmp / name).write_text(text)
+    return tmp
+
+
+def test_a_sequence_runs_reuses_and_skips(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(ROOT)
+    directory = steps(tmp_path)
+    out = tmp_path / 'table.md'
+    argv = [str(directory), '--scene', 'options/discocyte.opts', '--np', '1', '--out', str(out)]
+
+    assert sequence.main(argv) == 1  # step 03 did not run
+    first = capsys.readouterr().out
+    assert '03_B_eps0.05.opts: not run, its start' in first
+    assert not (tmp_path / 'B_eps0.05.h5').exists()
+    rows = [line for line in out.read_text().splitlines() if line.startswith('| 0')]
+    assert [row.split(' | ')[1] for row in rows] == ['U', 'A']
+    adapted = checkpoint.read(tmp_path / 'A_eps0.06.h5')
+    assert adapted.attrs['converged'] == 1
+    # the relocation kept the count and concentrated the nodes: a finer spacing
+    uniform = checkpoint.read(tmp_path / 'U_eps0.06.h5')
+    assert adapted.attrs['n_nodes'] == uniform.attrs['n_nodes']
+    assert adapted.attrs['eps_min'] < uniform.attrs['eps_min']
+
+    assert sequence.main(argv) == 1
+    second = capsys.readouterr().out
+    assert 'mpiexec' not in second  # nothing converged runs again
+    assert all(row.endswith('| reused |') for row in out.read_text().splitlines()
+               if row.startswith('| 0'))
+
+
+def fake_checkpoint(path, n_nodes, symmetric, eps=0.01, energy=9.18):
+    """Attributes a table row reads, of an oblate run."""
+    with h5py.File(path, 'w') as f:
+        f.attrs.update(branch='oblate', eps=eps, energy=energy, n_nodes=n_nodes,
+                       symmetric=int(symmetric), gamma=0.5, eps_min=0.004, max_phi=1.0,
+                       stage1_iterations=3, stage2_iterations=2, converged=1, time_setup=1.0,
+                       time_stage1=2.0, time_stage2=1.0, peak_rss_mb=100.0, wall_time=4.0,
+                       n_procs=2)
+
+
+@pytest.mark.parametrize('n_nodes, symmetric, paper', [(12262, False, 12271),
+                                                      (12319, True, 24597),
+                                                      (6176, True, 12271)])
+def test_the_table_compares_a_half_box_with_its_full_box_grid(tmp_path, n_nodes, symmetric,
+                                                              paper):
+    path = tmp_path / 'O32_eps0.01.h5'
+    fake_checkpoint(path, n_nodes, symmetric)
+    step = tmp_path / '07_O32_eps0.01.opts'
+    step.write_text(f'-pf_output {path}\n')
+
+    rows, total, ranks = sequence.table([str(step)], {})
+
+    cells = rows[-1].split(' | ')
+    assert cells[11] == f'{100 * (9.18 / SHARP["oblate"] - 1):.2f}%'
+    assert cells[12] == f'{SHARP_ERROR[paper][0.01]:.2f}%'
+    assert (total, ranks) == (4.0, [2])
