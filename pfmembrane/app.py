@@ -68,7 +68,8 @@ def relocated(p, ck, comm):
 def phase_field_checks(comm, xy, phi, attrs):
     """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
     set exists, the energy error and level-set distance against the
-    sharp-interface shape of the scene, as checkpoint attributes.
+    sharp-interface shape of the scene and the level set's own energy
+    (`limit.level_set_energy`), as checkpoint attributes.
 
     Collective; rank 0 computes, the others receive.
     """
@@ -79,7 +80,8 @@ def phase_field_checks(comm, xy, phi, attrs):
         try:
             c = limit.compare(ckpt)
             result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
-                          sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'])
+                          sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
+                          level_set_energy=c['energy_level_set'])
         except ValueError as e:
             PETSc.Sys.Print(f"sharp interface: no comparison ({e})", comm=PETSc.COMM_SELF)
     return comm.tompi4py().bcast(result, root=0)
@@ -226,7 +228,9 @@ def run(comm):
         PETSc.Sys.Print(
             f"sharp interface: E {attrs['sharp_energy']:.6f}, relative error "
             f"{100 * attrs['sharp_rel_error']:+.3f}%, phi_h = 0 within {attrs['sharp_dist_max']:.2e} "
-            f"(mean {attrs['sharp_dist_mean']:.2e}) of its curve")
+            f"(mean {attrs['sharp_dist_mean']:.2e}) of its curve; the level set's own energy "
+            f"{attrs['level_set_energy']:.6f} "
+            f"({100 * (attrs['level_set_energy'] / attrs['sharp_energy'] - 1):+.4f}%)")
     if not converged and comm.getRank() == 0:
         sys.stderr.write(f"pfmembrane: {message} (checkpoint {output} marked converged = 0)\n")
     return status

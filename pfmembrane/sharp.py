@@ -455,6 +455,54 @@ def energy_reference(reduced_volume, branch, c0=0.0, radius=1.0, k=1.0):
     return solve(reduced_volume, branch, c0=c0, radius=radius, k=k).energy
 
 
+SHAPE_MODES = 48    # sine modes of `shape_energy`: the v = 0.8 shapes need 12-16
+
+
+def shape_energy(theta, psi, length, area, volume, c0=0.0, k=1.0, n=SHAPE_MODES):
+    """Energy of a given generating curve, put on the constraints.
+
+    The tangent angle psi(theta) of a closed curve (theta = pi s / length,
+    s the arc length from pole to pole) is fitted by the sine series of
+    `solve` (least squares, modes 1 ... n), and the series is moved by the
+    smallest Gauss-Newton correction onto area, volume and closure.  As the
+    minimum of `solve` is stationary on that constraint set, a curve a
+    distance d from it gives the minimal energy up to O(d^2) (the energy of
+    the uncorrected curve errs by O(d), through the constraint residuals).
+
+    Parameters
+    ----------
+    theta, psi : ndarray, shape (M,)
+        Samples of the tangent angle, psi = 0 at the first pole and pi at
+        the second, counterclockwise in the (r, z) half-plane.
+    length : float
+        Length of the generating curve.
+    area, volume : float
+        Constraint values, in the units of `length`.
+    c0 : float
+        Spontaneous curvature, in the inverse units of `length`.
+    k : float
+        Bending rigidity.
+    n : int
+        Highest sine mode.
+
+    Returns
+    -------
+    energy : float
+        Energy of the corrected curve; NaN if no feasible correction is
+        found near the curve.
+    energy_curve : float
+        Energy of the fitted curve itself.
+    """
+    grid = _Grid(n, False)
+    coefficients = np.linalg.lstsq(np.sin(np.outer(theta, grid.modes)), psi - theta,
+                                   rcond=None)[0]
+    x = np.append(coefficients, length / np.pi)
+    energy_curve = k * _evaluate(grid, x, c0)[0][0]
+    feasible = _project(grid, x, np.array([area, volume, 0.0]), c0)
+    energy = np.nan if feasible is None else k * _evaluate(grid, feasible, c0)[0][0]
+    return energy, energy_curve
+
+
 def _timed(*args, **kwargs):
     """solve(*args, **kwargs) and its wall time, without the resolution warning
     (the tables show the convergence in n themselves)."""

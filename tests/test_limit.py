@@ -5,6 +5,7 @@ import matplotlib
 matplotlib.use("Agg")
 
 import numpy as np  # noqa: E402
+from matplotlib.path import Path  # noqa: E402
 import pytest  # noqa: E402
 
 from pfmembrane import checkpoint, limit  # noqa: E402
@@ -210,3 +211,44 @@ def test_enclosed_volume_of_a_sphere_and_a_torus():
     s = np.linspace(0.0, 2 * np.pi, 801)[:-1]
     torus = [np.column_stack([0.5 + 0.1 * np.cos(s), 1.0 + 0.1 * np.sin(s)])]
     assert abs(limit.enclosed_volume(torus) / (2 * np.pi ** 2 * 0.5 * 0.1 ** 2) - 1) < 1e-4
+
+
+def sharp_checkpoint(path, eps, n):
+    """Checkpoint of phi = tanh(d / (sqrt2 eps)), d the signed distance to the
+    sharp v = 0.8 discocyte of radius R centred at z = ZC."""
+    shape = limit.reference("oblate", 0.8, 0.0, R, 1.0)
+    curve = np.column_stack([shape.r, shape.z + ZC])
+    nodes = nodesets.uniform(BOX, n)
+    inside = Path(curve).contains_points(nodes)
+    d = limit._polyline_distance(nodes, limit._dense(curve))
+    phi = np.tanh(np.where(inside, d, -d) / (np.sqrt(2.0) * eps))
+    phi[nodesets.dirichlet_mask(nodes, BOX)] = -1.0
+    attrs = {"energy": 1.05 * shape.energy, "area": shape.area, "volume": shape.volume,
+             "moment": 0.0, "eps": eps, "k": 1.0, "c0": 0.0, "gamma": 0.8, "nu_area": 0.0,
+             "nu_volume": 0.0, "converged": 1, "wall_time": 1.0, "box": BOX, "cutoff": 1e-6,
+             "radius": R, "reduced_volume": 0.8, "branch": "oblate"}
+    checkpoint.write(path, nodes, phi, attrs)
+    return checkpoint.read(path), shape.energy
+
+
+def test_level_set_energy_is_the_sharp_energy_to_second_order(tmp_path):
+    ckpt, e_sharp = sharp_checkpoint(tmp_path / "disc.h5", eps=0.03, n=4000)
+
+    result = limit.compare(ckpt)
+    energy, energy_curve = limit.level_set_energy(ckpt, limit.level_set(ckpt))
+
+    h = spacing(ckpt)
+    assert 0.01 * h < result["dist_max"] < 0.2 * h
+    assert result["rel_error"] == pytest.approx(0.05)
+    assert result["energy_level_set"] == energy
+    # d / R ~ 1e-3: the curve's own energy errs by O(d), the corrected one by O(d^2)
+    assert 0.0 < result["rel_error_level_set"] < 1e-5
+    assert abs(energy_curve / e_sharp - 1.0) > 1e-4
+
+
+def test_level_set_energy_needs_one_curve_from_axis_to_axis(sphere):
+    ring = [np.column_stack([0.2 + 0.05 * np.cos(t), 0.5 + 0.05 * np.sin(t)])
+            for t in [np.linspace(0.0, 2.0 * np.pi, 50)]]
+
+    assert np.isnan(limit.level_set_energy(sphere, ring)).all()
+    assert np.isnan(limit.level_set_energy(sphere, 2 * limit.level_set(sphere))).all()

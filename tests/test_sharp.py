@@ -163,3 +163,30 @@ def test_gradients_match_finite_differences():
         difference = (grid.functionals((x + step)[None], 0.3)[0]
                       - grid.functionals((x - step)[None], 0.3)[0])[0] / (2 * h)
         assert np.allclose(gradients[0][:, i], difference, rtol=1e-7, atol=1e-8)
+
+
+def tangent_angle(shape):
+    """theta, psi and length of a solved curve, from its chords."""
+    dr, dz = np.diff(shape.r), np.diff(shape.z)
+    chords = np.hypot(dr, dz)
+    s = np.concatenate([[0.0], np.cumsum(chords)])
+    mid = 0.5 * (s[1:] + s[:-1])
+    return np.pi * mid / s[-1], np.unwrap(np.arctan2(dz, dr)), s[-1]
+
+
+@pytest.mark.parametrize('branch, c0', [('oblate', 0.0), ('prolate', 1.0)])
+def test_shape_energy_is_second_order_in_the_distance_to_the_minimum(branch, c0):
+    shape = solve(0.8, branch, c0=c0, radius=0.4, k=2.0)
+    theta, psi, length = tangent_angle(shape)
+    args = (length, shape.area, shape.volume, c0, 2.0)
+
+    assert sharp.shape_energy(theta, psi, *args)[0] == pytest.approx(shape.energy, rel=1e-8)
+    excess, excess_curve = [], []
+    for delta in (2e-2, 1e-2):
+        # an odd mode: the closure constraint acts too on the prolate path
+        energy, energy_curve = sharp.shape_energy(theta, psi + delta * np.sin(3 * theta), *args)
+        excess.append(energy - shape.energy)
+        excess_curve.append(abs(energy_curve - shape.energy))
+    assert min(excess) > 0.0                                 # the solved shape is a minimum
+    assert excess[0] / excess[1] == pytest.approx(4.0, rel=0.1)
+    assert excess_curve[0] / excess_curve[1] == pytest.approx(2.0, rel=0.1)
