@@ -228,9 +228,10 @@ def run(comm):
         PETSc.Sys.Print(
             f"sharp interface: E {attrs['sharp_energy']:.6f}, relative error "
             f"{100 * attrs['sharp_rel_error']:+.3f}%, phi_h = 0 within {attrs['sharp_dist_max']:.2e} "
-            f"(mean {attrs['sharp_dist_mean']:.2e}) of its curve; the level set's own energy "
-            f"{attrs['level_set_energy']:.6f} "
-            f"({100 * (attrs['level_set_energy'] / attrs['sharp_energy'] - 1):+.4f}%)")
+            f"(mean {attrs['sharp_dist_mean']:.2e}) of its curve"
+            + (f"; the level set's own energy {attrs['level_set_energy']:.6f} "
+               f"({100 * (attrs['level_set_energy'] / attrs['sharp_energy'] - 1):+.4f}%)"
+               if np.isfinite(attrs['level_set_energy']) else ""))
     if not converged and comm.getRank() == 0:
         sys.stderr.write(f"pfmembrane: {message} (checkpoint {output} marked converged = 0)\n")
     return status

@@ -217,6 +217,8 @@ def level_set_energy(ckpt, curve):
     _, grad = PhaseField(ckpt)(points, gradient=True)
     # phi_h > 0 inside: the inward normal grad phi_h turned clockwise is the
     # tangent of the counterclockwise meridian, bottom pole to top pole.
+    if not np.all(np.isfinite(grad)):
+        return np.nan, np.nan
     psi = np.unwrap(np.arctan2(-grad[:, 0], grad[:, 1]))
     psi -= 2.0 * np.pi * np.round(psi[0] / (2.0 * np.pi))
     s = _arc_length(points)
