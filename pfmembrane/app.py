@@ -76,9 +76,10 @@ def phase_field_checks(comm, xy, phi, attrs):
     result = {}
     if comm.getRank() == 0:
         ckpt = checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded()
-        result['boundary_phi'] = limit.boundary_phi(ckpt)
+        field = limit.PhaseField(ckpt)
+        result['boundary_phi'] = limit.boundary_phi(ckpt, field=field)
         try:
-            c = limit.compare(ckpt)
+            c = limit.compare(ckpt, field=field)
             result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
                           sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
                           level_set_energy=c['energy_level_set'])

@@ -41,7 +41,7 @@ import numpy as np
 from . import checkpoint, launch
 from .bench import machine, machine_line
 from .checkpoint import CheckpointError
-from .limit import BOUNDARY_TOL, boundary_phi
+from .limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, level_set
 from .sequence import converged
 from .tables import SCENE
 
@@ -320,21 +320,21 @@ def saved_record(case, out, argv):
     return record
 
 
-def level_set_shape(ckpt):
+def level_set_shape(ckpt, field):
     """Reduced volume of the surface phi_h = 0 and its number of pieces.
 
     Not collective. The volume and area are those of the revolved polyline of
-    `limit.level_set`; the reduced volume is None unless the level set is one piece.
+    `limit.level_set` (`field` is the checkpoint's phi_h); the reduced volume is
+    None unless the level set is one piece.
     """
-    from .limit import level_set
     try:
-        pieces = level_set(ckpt)
+        pieces = level_set(ckpt, field=field)
     except (ValueError, RuntimeError):
         return None, 0
     if len(pieces) != 1:
         return None, len(pieces)
     r, z = pieces[0].T
-    volume = abs(np.sum(0.5 * np.pi * (r[1:] ** 2 + r[:-1] ** 2) * np.diff(z)))
+    volume = enclosed_volume(pieces)
     area = np.sum(np.pi * (r[1:] + r[:-1]) * np.hypot(np.diff(r), np.diff(z)))
     return float(volume / (4.0 / 3.0 * np.pi * (area / (4.0 * np.pi)) ** 1.5)), 1
 
@@ -423,6 +423,7 @@ def measure(case, record, argv, out, reused=False):
     a = ckpt.attrs if ckpt else None
     row['grid'] = grid_label(case, argv, a)
     if ckpt:
+        field = PhaseField(ckpt)
         radius, v = float(a['radius']), float(a['reduced_volume'])
         area0, volume0 = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
         row.update({key: _plain(a.get(key)) for key in (
@@ -431,8 +432,8 @@ def measure(case, record, argv, out, reused=False):
             'under_resolved', 'radius')})
         row.update(area_residual=(float(a['area']) - area0) / area0,
                    volume_residual=(float(a['volume']) - volume0) / volume0,
-                   box=[float(b) for b in ckpt.box], boundary_phi=boundary_phi(ckpt))
-        row['level_set_v'], row['level_set_pieces'] = level_set_shape(ckpt)
+                   box=[float(b) for b in ckpt.box], boundary_phi=boundary_phi(ckpt, field=field))
+        row['level_set_v'], row['level_set_pieces'] = level_set_shape(ckpt, field)
     if case.versus:
         vpath = checkpoint_path(out, case.versus)
         va = attributes(vpath) if converged(vpath) else None

@@ -133,7 +133,7 @@ class PhaseField:
         return phi, grad
 
 
-def level_set(ckpt, samples=400):
+def level_set(ckpt, samples=400, field=None):
     """The membrane phi_h = 0 of a checkpoint as polylines in (r, z).
 
     Not collective.  The phase field is the max-ent approximant phi_h, not
@@ -150,6 +150,8 @@ def level_set(ckpt, samples=400):
     samples : int
         Number of points over all pieces, shared in proportion to their
         lengths (at least 2 per piece).
+    field : PhaseField, optional
+        phi_h of `ckpt`, if the caller has built it already.
 
     Returns
     -------
@@ -164,7 +166,7 @@ def level_set(ckpt, samples=400):
     RuntimeError
         If the projection does not converge.
     """
-    field = PhaseField(ckpt)
+    field = PhaseField(ckpt) if field is None else field
     pieces = _raster_contour(field, np.asarray(ckpt.attrs["box"], dtype=float),
                              _SEED_STEP * float(ckpt.attrs["eps"]))
     if not pieces:
@@ -187,7 +189,7 @@ def level_set(ckpt, samples=400):
                        f"{_NEWTON_STEPS} Newton steps")
 
 
-def level_set_energy(ckpt, curve):
+def level_set_energy(ckpt, curve, field=None):
     """Canham-Helfrich energy of the membrane phi_h = 0, put on the
     constraints of the scene (`pfmembrane.sharp.shape_energy`).
 
@@ -199,9 +201,12 @@ def level_set_energy(ckpt, curve):
     Parameters
     ----------
     ckpt : pfmembrane.checkpoint.Checkpoint or alike
-        The attributes `SCENE_ATTRS` and ``reduced_volume``'s scene.
+        See `compare`; the area and volume are those of its scene's sharp
+        shape (`reference`).
     curve : list of ndarray
         The level set of `ckpt` (`level_set`).
+    field : PhaseField, optional
+        phi_h of `ckpt`, if the caller has built it already.
 
     Returns
     -------
@@ -214,18 +219,17 @@ def level_set_energy(ckpt, curve):
     if len(curve) != 1 or max(curve[0][0, 0], curve[0][-1, 0]) > tolerance:
         return np.nan, np.nan
     points = curve[0] if curve[0][0, 1] < curve[0][-1, 1] else curve[0][::-1]
-    _, grad = PhaseField(ckpt)(points, gradient=True)
-    # phi_h > 0 inside: the inward normal grad phi_h turned clockwise is the
-    # tangent of the counterclockwise meridian, bottom pole to top pole.
+    _, grad = (PhaseField(ckpt) if field is None else field)(points, gradient=True)
     if not np.all(np.isfinite(grad)):
         return np.nan, np.nan
+    # phi_h > 0 inside: the inward normal grad phi_h turned clockwise is the
+    # tangent of the counterclockwise meridian, bottom pole to top pole.
     psi = np.unwrap(np.arctan2(-grad[:, 0], grad[:, 1]))
     psi -= 2.0 * np.pi * np.round(psi[0] / (2.0 * np.pi))
     s = _arc_length(points)
-    radius, v = float(attrs["radius"]), float(attrs["reduced_volume"])
-    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], 4.0 * np.pi * radius ** 2,
-                              v * 4.0 / 3.0 * np.pi * radius ** 3, float(attrs["c0"]),
-                              float(attrs["k"]))
+    target = reference(*_scene(attrs))
+    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], target.area, target.volume,
+                              float(attrs["c0"]), float(attrs["k"]))
 
 
 def _raster_contour(field, box, step):
@@ -274,11 +278,12 @@ def distance(curve, shape, centre=0.0):
                                    np.max(back)))}
 
 
-def boundary_phi(ckpt, samples=BOUNDARY_SAMPLES):
+def boundary_phi(ckpt, samples=BOUNDARY_SAMPLES, field=None):
     """Largest phi_h on the lines one eps inside the sides r = Rb, z = 0, z = Zb.
 
     Not collective. The nodes on those sides hold phi = -1 by construction; one eps inside,
-    phi_h shows a membrane pressed against the box. `ckpt` covers the full box.
+    phi_h shows a membrane pressed against the box. `ckpt` covers the full box;
+    `field`, if given, is its phi_h (`PhaseField`).
     """
     rb, zb = ckpt.box
     d = float(ckpt.attrs['eps'])
@@ -286,7 +291,7 @@ def boundary_phi(ckpt, samples=BOUNDARY_SAMPLES):
     points = np.concatenate([np.column_stack([s * (rb - d), np.full(samples, d)]),
                              np.column_stack([s * (rb - d), np.full(samples, zb - d)]),
                              np.column_stack([np.full(samples, rb - d), d + s * (zb - 2 * d)])])
-    return float(np.max(PhaseField(ckpt)(points)))
+    return float(np.max((PhaseField(ckpt) if field is None else field)(points)))
 
 
 def enclosed_volume(curve):
@@ -304,7 +309,7 @@ def enclosed_volume(curve):
     return total
 
 
-def compare(ckpt, samples=400):
+def compare(ckpt, samples=400, field=None):
     """Energy and shape of a checkpoint against its sharp-interface limit.
 
     Not collective.  The sharp shape (`reference`) has the scene of the
@@ -318,22 +323,26 @@ def compare(ckpt, samples=400):
         ``nodes``, ``phi`` and the attributes `SCENE_ATTRS`.
     samples : int
         Points of the level set, see `level_set`.
+    field : PhaseField, optional
+        phi_h of `ckpt`, if the caller has built it already.
 
     Returns
     -------
     dict
         ``energy_sharp``; ``rel_error`` = (E - E_sharp) / E_sharp, signed;
-        ``dist_max``, ``dist_mean``, ``dist_hausdorff``: see `distance`.
+        ``energy_level_set`` (`level_set_energy`) and its
+        ``rel_error_level_set``; ``dist_max``, ``dist_mean``,
+        ``dist_hausdorff``: see `distance`.
 
     Raises
     ------
     ValueError
         If an attribute is missing or the scene has no sharp counterpart.
     """
-    return _compare(ckpt, samples)[0]
+    return _compare(ckpt, samples, field)[0]
 
 
-def _compare(ckpt, samples):
+def _compare(ckpt, samples, field=None):
     """`compare`, and the level set and the placed sharp curve it measured."""
     attrs = ckpt.attrs
     missing = [key for key in SCENE_ATTRS if key not in attrs]
@@ -341,10 +350,11 @@ def _compare(ckpt, samples):
         raise ValueError(f"checkpoint lacks the attribute(s) "
                          f"{', '.join(missing)}")
     shape = reference(*_scene(attrs))
-    curve = level_set(ckpt, samples)
+    field = PhaseField(ckpt) if field is None else field
+    curve = level_set(ckpt, samples, field)
     centre = 0.5 * float(attrs["box"][1])
     dist = distance(curve, shape, centre)
-    level_energy = level_set_energy(ckpt, curve)[0]
+    level_energy = level_set_energy(ckpt, curve, field)[0]
     result = {"energy_sharp": shape.energy,
               "rel_error": (float(attrs["energy"]) - shape.energy) / shape.energy,
               "energy_level_set": level_energy,
