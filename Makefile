@@ -13,7 +13,7 @@ DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy 
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half bench bench-basis bench-scenes branches figures extremes clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 bench bench-basis bench-scenes branches figures extremes clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -28,6 +28,7 @@ help:
 	@echo "make adapt-dumbbell-12271-half  the 12,271-node dumbbell sequence on the half box, to eps 0.01"
 	@echo "make adapt-24597-half  the 24,597-node discocyte sequence on the half box, to eps 0.005"
 	@echo "make adapt    all five sequences, tables under runs/adapt/"
+	@echo "make table4   Table 4 from the discocyte sequences' checkpoints (runs/adapt/table4.md)"
 	@echo "make bench    speed/accuracy of full solves under runs/bench/ (solve.md, pareto.png)"
 	@echo "make bench-basis  set-up time, size and memory of the max-ent basis (runs/bench/basis.md)"
 	@echo "make bench-scenes half box and auto box against the paper box (runs/bench/scenes.md)"
@@ -85,6 +86,11 @@ adapt-dumbbell-12271-half: install
 adapt-24597-half: install
 	$(SEQUENCE) options/adapt/discocyte_24597_half --scene options/discocyte.opts
 adapt: adapt-discocyte adapt-dumbbell adapt-12271 adapt-24597 adapt-dumbbell-12271
+
+TABLE4_SEQUENCES = $(addprefix options/adapt/,discocyte discocyte_half discocyte_12271 \
+                   discocyte_24597 discocyte_24597_half)
+table4: install
+	$(PY) -m pfmembrane.table4 $(TABLE4_SEQUENCES) --out runs/adapt/table4.md
 
 bench: install
 	$(PY) -m pfmembrane.bench solve --out runs/bench

@@ -31,6 +31,14 @@ def option_of(step, name):
     return found[-1] if found else None
 
 
+def steps_of(directory):
+    """The step options files of a sequence directory, in run order."""
+    steps = sorted(glob.glob(os.path.join(directory, '*.opts')))
+    if not steps:
+        sys.exit(f"{directory}: no options files")
+    return steps
+
+
 def output_of(step):
     """The -pf_output path an options file names."""
     out = option_of(step, 'pf_output')
@@ -145,9 +153,7 @@ def main(argv=None):
     ap.add_argument('--note', default='',
                     help='a sentence for the header: how the machine was shared, reruns')
     args = ap.parse_args(argv)
-    steps = sorted(glob.glob(os.path.join(args.directory, '*.opts')))
-    if not steps:
-        sys.exit(f"{args.directory}: no options files")
+    steps = steps_of(args.directory)
     t0 = time.perf_counter()
     walls = {} if args.report else run(steps, args.scene, args.np, args.force)
     elapsed = time.perf_counter() - t0
