@@ -201,7 +201,7 @@ def frame(axes, ckpts):
     """Frame 3D axes on the membranes of their checkpoints, all at one scale
     (`pfmembrane.plot.plot_3d` shows the whole box, where a vesicle is small)."""
     outlines = [np.vstack(pieces) - [0.0, 0.5 * c.box[1]]
-                for c in ckpts if (pieces := plot.zero_contour(c))]
+                for c in ckpts if (pieces := limit.level_set(c))]
     if not outlines:
         return
     r, z = 1.05 * np.max(np.abs(np.vstack(outlines)), axis=0)

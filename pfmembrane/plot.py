@@ -9,8 +9,11 @@ writes ``<stem>_<what>.png`` for every checkpoint and figure (the
 ``section`` figure gathers all checkpoints and is named after the first one)
 into OUTDIR, by default the checkpoint's directory, and prints each path.
 
-The fields live on scattered nodes; the figures interpolate them linearly on
-the Delaunay triangulation of the nodes.
+The fields live on scattered nodes; the colour maps and sections interpolate
+the nodal values linearly on the Delaunay triangulation of the nodes, while
+the membrane is the level set phi_h = 0 of the max-ent approximant
+(`pfmembrane.limit.level_set`): on a graded grid the nodal values, which
+phi_h does not interpolate, can cross zero away from the membrane.
 """
 
 import argparse
@@ -23,10 +26,10 @@ import matplotlib.tri as mtri
 import numpy as np
 from matplotlib.figure import Figure
 
-from pfmembrane import checkpoint
+from pfmembrane import checkpoint, limit
 from pfmembrane.nodes import nodal_spacing
 
-__all__ = ["FIGURES", "triangulation", "zero_contour",
+__all__ = ["FIGURES", "triangulation",
            "plot_field", "plot_section", "plot_3d", "plot_spacing", "main"]
 
 FIGURES = ("field", "nodes", "section", "3d", "spacing")
@@ -48,29 +51,8 @@ def triangulation(ckpt):
     return mtri.Triangulation(ckpt.nodes[:, 0], ckpt.nodes[:, 1])
 
 
-def zero_contour(ckpt):
-    """The membrane, phi = 0, as polylines in the (r, z) half-plane.
-
-    Not collective.
-
-    Parameters
-    ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint
-
-    Returns
-    -------
-    list of ndarray, shape (M, 2)
-        One (r, z) polyline per connected piece of the level set.
-    """
-    # A figure that is never shown does the contouring, so that the
-    # caller's figures stay untouched.
-    axes = Figure().add_subplot()
-    contours = axes.tricontour(triangulation(ckpt), ckpt.phi, levels=[0.0])
-    return [line for line in contours.allsegs[0] if len(line) > 1]
-
-
 def plot_field(ckpt, ax=None, nodes=True):
-    """Draw phi over the full cross section with the membrane phi = 0.
+    """Draw phi over the full cross section with the membrane phi_h = 0.
 
     Not collective.  The computed half-plane r >= 0 is mirrored to r < 0.
 
@@ -94,8 +76,10 @@ def plot_field(ckpt, ax=None, nodes=True):
     for tri in (half, mirror):
         image = ax.tripcolor(tri, ckpt.phi, shading="gouraud", cmap="RdBu_r",
                              vmin=-1.0, vmax=1.0)
-        ax.tricontour(tri, ckpt.phi, levels=[0.0], colors="k",
-                      linewidths=1.2)
+    for line in limit.level_set(ckpt):
+        for sign in (1.0, -1.0):
+            ax.plot(sign * line[:, 0], line[:, 1], color="k", linewidth=1.2,
+                    label="_membrane")
     if nodes:
         ax.plot(-ckpt.nodes[:, 0], ckpt.nodes[:, 1], ".", color="k",
                 markersize=1.5)
@@ -149,7 +133,7 @@ def plot_section(ckpts, ax=None, z_mid=None, samples=400):
 
 
 def plot_3d(ckpt, ax=None, n_theta=48):
-    """Draw the membrane as the surface of revolution of phi = 0 about the
+    """Draw the membrane as the surface of revolution of phi_h = 0 about the
     z axis.
 
     Not collective.
@@ -169,7 +153,7 @@ def plot_3d(ckpt, ax=None, n_theta=48):
     if ax is None:
         ax = plt.figure().add_subplot(projection="3d")
     theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
-    for line in zero_contour(ckpt):
+    for line in limit.level_set(ckpt):
         r, z = line[:, :1], line[:, 1:]
         ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
                         np.broadcast_to(z, (len(z), n_theta)),
