@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane import checkpoint, plot  # noqa: E402
+from pfmembrane import checkpoint, limit, plot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = (1.0, 2.0)
@@ -167,6 +167,11 @@ def test_field_mirrors_and_marks_nodes(pair):
 
     [dots] = [line for line in ax.get_lines() if line.get_label() != "_membrane"]
     np.testing.assert_array_equal(dots.get_xdata(), -thin.nodes[:, 0])
+    # the colours are phi_h at the nodes, not the coefficients it does not interpolate
+    phi_h = limit.PhaseField(thin)(thin.nodes)
+    assert np.max(np.abs(phi_h - thin.phi)) > 1e-3
+    for colours in ax.collections[:2]:
+        np.testing.assert_array_equal(colours.get_array(), phi_h)
     assert ax.get_xlim() == (-BOX[0], BOX[0])
     plt.close(ax.figure)
     bare = plot.plot_field(thin, nodes=False)
