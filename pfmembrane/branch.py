@@ -277,7 +277,7 @@ def plot(directory, dpi=150):
     import matplotlib.pyplot as plt
     from matplotlib.transforms import blended_transform_factory
     # limit initializes PETSc, hence MPI: a process that starts mpiexec must not.
-    from .limit import level_set, reference
+    from .limit import membrane, reference
 
     found = {branch: [c for _, c in pairs] for branch, pairs in checkpoints(directory).items()}
     if not found:
@@ -303,7 +303,7 @@ def plot(directory, dpi=150):
         sharp_line = [_sharp(reference, branch, x, scene) for x in fine]
         energy.plot(fine, [np.nan if s is None else s.energy for s in sharp_line], '-',
                     color=colour, label=f"{branch}, sharp interface")
-        shapes[branch] = [(c.attrs['reduced_volume'], _silhouette(level_set, c),
+        shapes[branch] = [(c.attrs['reduced_volume'], _silhouette(membrane, c),
                            _sharp(reference, branch, c.attrs['reduced_volume'], scene)) for c in ckpts]
     energy.set_ylabel('E')
     energy.set_title('Bending energy along the branches')
@@ -346,13 +346,10 @@ def _sharp(reference, branch, v, scene):
         return None
 
 
-def _silhouette(level_set, ckpt):
+def _silhouette(membrane, ckpt):
     """Closed outlines of phi_h = 0 mirrored about the axis, centred at Zb / 2;
     [] where the level set cannot be found."""
-    try:
-        pieces = level_set(ckpt)
-    except (ValueError, RuntimeError):
-        return []
+    pieces = membrane(ckpt)
     centre = np.array([0.0, 0.5 * ckpt.box[1]])
     return [np.vstack([p - centre, (p - centre)[-2::-1] * [-1.0, 1.0]]) for p in pieces]
 

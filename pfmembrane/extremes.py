@@ -41,7 +41,7 @@ import numpy as np
 from . import checkpoint, launch
 from .bench import machine, machine_line
 from .checkpoint import CheckpointError
-from .limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, level_set
+from .limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
 from .sequence import converged
 from .tables import SCENE
 
@@ -324,13 +324,10 @@ def level_set_shape(ckpt, field):
     """Reduced volume of the surface phi_h = 0 and its number of pieces.
 
     Not collective. The volume and area are those of the revolved polyline of
-    `limit.level_set` (`field` is the checkpoint's phi_h); the reduced volume is
+    `limit.membrane` (`field` is the checkpoint's phi_h); the reduced volume is
     None unless the level set is one piece.
     """
-    try:
-        pieces = level_set(ckpt, field=field)
-    except (ValueError, RuntimeError):
-        return None, 0
+    pieces = membrane(ckpt, field=field)
     if len(pieces) != 1:
         return None, len(pieces)
     r, z = pieces[0].T

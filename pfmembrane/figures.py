@@ -32,6 +32,7 @@ from matplotlib.path import Path
 
 from . import checkpoint, limit, plot
 from .branch import checkpoints as branch_checkpoints
+from .sequence import grid_name
 
 # Shape name and the paper's figure of its adapted grids.
 SHAPES = (('discocyte', '7'), ('dumbbell', '10'))
@@ -82,11 +83,6 @@ class Index:
             f.write('\n'.join(lines) + '\n')
         print(path)
         return path
-
-
-def grid_name(path):
-    """The grid of a checkpoint named <grid>_eps<eps>.h5 (its stem otherwise)."""
-    return os.path.splitext(os.path.basename(path))[0].split('_eps')[0]
 
 
 def load(paths, index):
@@ -197,30 +193,30 @@ def limit_figure(shape, paths, index):
     index.add(f"{shape}_limit.md", '8b (table)', paths)
 
 
-def frame(axes, ckpts):
-    """Frame 3D axes on the membranes of their checkpoints, all at one scale
-    (`pfmembrane.plot.plot_3d` shows the whole box, where a vesicle is small)."""
-    outlines = [np.vstack(pieces) - [0.0, 0.5 * c.box[1]]
-                for c in ckpts if (pieces := limit.level_set(c))]
-    if not outlines:
-        return
-    r, z = 1.05 * np.max(np.abs(np.vstack(outlines)), axis=0)
-    for ax, ckpt in zip(axes, ckpts):
-        centre = 0.5 * ckpt.box[1]
-        ax.set_xlim(-r, r)
-        ax.set_ylim(-r, r)
-        ax.set_zlim(centre - z, centre + z)
-        ax.set_box_aspect((2.0 * r, 2.0 * r, 2.0 * z))
+def revolved(figure, ckpts):
+    """One 3D axes per checkpoint, in a row of `figure`, with its membrane revolved
+    (`pfmembrane.plot.plot_3d`), all framed at one scale on the membranes: plot_3d
+    shows the whole box, where a vesicle is small. Returns the axes."""
+    curves = [limit.membrane(c) for c in ckpts]
+    axes = [plot.plot_3d(c, ax=figure.add_subplot(1, len(ckpts), i, projection='3d'), curve=curve)
+            for i, (c, curve) in enumerate(zip(ckpts, curves), start=1)]
+    outlines = [np.vstack(curve) - [0.0, 0.5 * c.box[1]] for c, curve in zip(ckpts, curves) if curve]
+    if outlines:
+        r, z = 1.05 * np.max(np.abs(np.vstack(outlines)), axis=0)
+        for ax, ckpt in zip(axes, ckpts):
+            centre = 0.5 * ckpt.box[1]
+            ax.set_xlim(-r, r)
+            ax.set_ylim(-r, r)
+            ax.set_zlim(centre - z, centre + z)
+            ax.set_box_aspect((2.0 * r, 2.0 * r, 2.0 * z))
+    return axes
 
 
 def shapes_figure(chosen, index, dpi):
     """The discocyte and the dumbbell revolved about the axis (Figure 5)."""
     figure = plt.figure(figsize=(5.0 * len(chosen), 5.0))
-    axes = []
-    for i, (shape, path, ckpt) in enumerate(chosen, start=1):
-        axes.append(plot.plot_3d(ckpt, ax=figure.add_subplot(1, len(chosen), i, projection='3d')))
-        axes[-1].set_title(f"{shape}: {axes[-1].get_title()}")
-    frame(axes, [ckpt for _, _, ckpt in chosen])
+    for ax, (shape, _, _) in zip(revolved(figure, [ckpt for _, _, ckpt in chosen]), chosen):
+        ax.set_title(f"{shape}: {ax.get_title()}")
     index.save(figure, 'shapes_3d.png', '5', [path for _, path, _ in chosen], dpi)
 
 
@@ -243,14 +239,10 @@ def branch_figures(directory, index, dpi):
         if not pairs:
             continue
         figure = plt.figure(figsize=(2.6 * len(pairs), 3.2))
-        axes = []
-        for i, (_, ckpt) in enumerate(pairs, start=1):
-            ax = plot.plot_3d(ckpt, ax=figure.add_subplot(1, len(pairs), i, projection='3d'))
+        for ax, (_, ckpt) in zip(revolved(figure, [ckpt for _, ckpt in pairs]), pairs):
             ax.set_title(f"v = {ckpt.attrs['reduced_volume']:g}, E = {ckpt.attrs['energy']:.4g}",
                          fontsize='small')
             ax.set_axis_off()
-            axes.append(ax)
-        frame(axes, [ckpt for _, ckpt in pairs])
         index.save(figure, f"branch_{branch}_3d.png", '6', [path for path, _ in pairs], dpi)
     energy = os.path.join(directory, 'energy.png')
     if os.path.exists(energy):

@@ -42,7 +42,8 @@ from pfmembrane.nodes import raster_axes
 BOUNDARY_TOL = 1e-3
 BOUNDARY_SAMPLES = 400
 
-__all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "level_set_energy", "distance",
+__all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "membrane", "level_set_energy",
+           "distance",
            "compare", "Extrapolation", "extrapolate", "main"]
 
 # Attributes a checkpoint needs, beyond nodes and phi, for `compare`.
@@ -189,6 +190,18 @@ def level_set(ckpt, samples=400, field=None):
                        f"{_NEWTON_STEPS} Newton steps")
 
 
+def membrane(ckpt, samples=400, field=None):
+    """`level_set`, or [] where phi_h has no zero level set or the projection
+    onto it fails: for what draws or measures a membrane that may be absent.
+
+    Not collective.
+    """
+    try:
+        return level_set(ckpt, samples, field)
+    except (ValueError, RuntimeError):
+        return []
+
+
 def level_set_energy(ckpt, curve, field=None):
     """Canham-Helfrich energy of the membrane phi_h = 0, put on the
     constraints of the scene (`pfmembrane.sharp.shape_energy`).
@@ -237,6 +250,8 @@ def _raster_contour(field, box, step):
     r, z = raster_axes(box, step)
     R, Z = np.meshgrid(r, z)
     phi = field(np.column_stack([R.ravel(), Z.ravel()])).reshape(R.shape)
+    if not phi.min() < 0.0 < phi.max():
+        return []  # matplotlib would contour a level inside the data range instead
     # A figure that is never shown does the contouring: the caller's stay untouched.
     contours = Figure().add_subplot().contour(r, z, phi, levels=[0.0])
     return [line for line in contours.allsegs[0] if len(line) > 1]
@@ -337,7 +352,10 @@ def compare(ckpt, samples=400, field=None):
     Raises
     ------
     ValueError
-        If an attribute is missing or the scene has no sharp counterpart.
+        If an attribute is missing, the scene has no sharp counterpart or
+        phi_h no zero level set.
+    RuntimeError
+        If the projection onto the level set does not converge (`level_set`).
     """
     return _compare(ckpt, samples, field)[0]
 

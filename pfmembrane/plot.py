@@ -26,7 +26,6 @@ import matplotlib
 import matplotlib.pyplot as plt
 import matplotlib.tri as mtri
 import numpy as np
-from matplotlib.figure import Figure
 
 from pfmembrane import checkpoint, limit
 from pfmembrane.nodes import nodal_spacing
@@ -80,7 +79,7 @@ def plot_field(ckpt, ax=None, nodes=True):
     for tri in (half, mirror):
         image = ax.tripcolor(tri, phi, shading="gouraud", cmap="RdBu_r",
                              vmin=-1.0, vmax=1.0)
-    for line in limit.level_set(ckpt, field=field):
+    for line in limit.membrane(ckpt, field=field):
         for sign in (1.0, -1.0):
             ax.plot(sign * line[:, 0], line[:, 1], color="k", linewidth=1.2,
                     label="_membrane")
@@ -134,7 +133,7 @@ def plot_section(ckpts, ax=None, z_mid=None, samples=400):
     return ax
 
 
-def plot_3d(ckpt, ax=None, n_theta=48):
+def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
     """Draw the membrane as the surface of revolution of phi_h = 0 about the
     z axis.
 
@@ -147,6 +146,8 @@ def plot_3d(ckpt, ax=None, n_theta=48):
         3D axes to draw into; a new figure by default.
     n_theta : int
         Number of meridians.
+    curve : list of ndarray, optional
+        The membrane (`pfmembrane.limit.membrane`), if the caller has it.
 
     Returns
     -------
@@ -155,7 +156,7 @@ def plot_3d(ckpt, ax=None, n_theta=48):
     if ax is None:
         ax = plt.figure().add_subplot(projection="3d")
     theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
-    for line in limit.level_set(ckpt):
+    for line in limit.membrane(ckpt) if curve is None else curve:
         r, z = line[:, :1], line[:, 1:]
         ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
                         np.broadcast_to(z, (len(z), n_theta)),

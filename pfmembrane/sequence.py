@@ -96,13 +96,11 @@ def table(steps, walls):
         with h5py.File(path, 'r') as f:
             a = dict(f.attrs)
         branch, eps, energy = str(a['branch']), round(float(a['eps']), 6), float(a['energy'])
-        grid = os.path.basename(path).split('_eps')[0]
+        grid = grid_name(path)
         paper = ADAPTED.get((branch, grid), {}).get(eps)
         fine = UNIFORM[(branch, FINEST)].get(eps)
         sharp = 100 * (energy / SHARP[branch] - 1)
-        # a half box holds half the nodes of the full-box grid it stands for
-        nominal = _nominal(int(a['n_nodes']) * (2 if a.get('symmetric', 0) else 1))
-        table4 = SHARP_ERROR.get(nominal, {}).get(eps) if branch == 'oblate' else None
+        table4 = SHARP_ERROR.get(paper_grid(a), {}).get(eps) if branch == 'oblate' else None
         wall = walls.get(step)
         total += float(a['wall_time'])
         ranks.add(int(a['n_procs']))
@@ -123,8 +121,15 @@ def _setup(a):
     return f"{a['time_setup']:.1f}" + ('' if np.isnan(cvt) else f" ({cvt:.1f})")
 
 
-def _nominal(n):
-    """The paper's node count of a uniform grid of about n nodes."""
+def grid_name(path):
+    """The grid of a checkpoint named <grid>_eps<eps>.h5 (its stem otherwise)."""
+    return os.path.splitext(os.path.basename(path))[0].split('_eps')[0]
+
+
+def paper_grid(attrs):
+    """The paper's node count of the grid a checkpoint's nodes stand for; a half
+    box holds half the nodes of its full-box grid."""
+    n = int(attrs['n_nodes']) * (2 if attrs.get('symmetric', 0) else 1)
     return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))
 
 

@@ -17,7 +17,7 @@ import sys
 import h5py
 
 from .paper import FINEST, SHARP, SHARP_ERROR
-from .sequence import _nominal, converged, output_of, steps_of
+from .sequence import converged, grid_name, output_of, paper_grid, steps_of
 
 COLUMNS = (0.03, 0.025, 0.02, 0.015, 0.01, 0.007, 0.005)
 
@@ -34,9 +34,7 @@ def cells(directory):
             a = dict(f.attrs)
         if str(a['branch']) != 'oblate':
             sys.exit(f"{path}: Table 4 is of the discocyte (oblate), not {a['branch']}")
-        half = bool(a.get('symmetric', 0))
-        nominal = _nominal(int(a['n_nodes']) * (2 if half else 1))
-        grid = os.path.basename(path).split('_eps')[0]
+        half, nominal, grid = bool(a.get('symmetric', 0)), paper_grid(a), grid_name(path)
         eps = round(float(a['eps']), 6)
         error = 100 * (float(a['energy']) / SHARP['oblate'] - 1)
         if eps not in found or error < found[eps][0]:

@@ -252,3 +252,30 @@ def test_level_set_energy_needs_one_curve_from_axis_to_axis(sphere):
 
     assert np.isnan(limit.level_set_energy(sphere, ring)).all()
     assert np.isnan(limit.level_set_energy(sphere, 2 * limit.level_set(sphere))).all()
+
+
+def test_membrane_is_empty_where_phi_h_has_no_zero_level_set(sphere):
+    outside = checkpoint.Checkpoint(nodes=sphere.nodes, phi=-np.ones(len(sphere.nodes)),
+                                    attrs=sphere.attrs)
+
+    with pytest.raises(ValueError):
+        limit.level_set(outside)
+    assert limit.membrane(outside) == []
+    assert len(limit.membrane(sphere)) == 1
+
+
+def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, monkeypatch):
+    """A converged run measures phi_h before it writes its checkpoint: a level set
+    whose projection fails must cost the comparison, not the run."""
+    from petsc4py import PETSc
+    from pfmembrane import app
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("the projection onto phi_h = 0 did not converge")
+
+    checked = app.phase_field_checks(PETSc.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
+    monkeypatch.setattr(limit, "level_set", fails)
+    failed = app.phase_field_checks(PETSc.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
+
+    assert "sharp_energy" in checked and "sharp_energy" not in failed
+    assert failed["boundary_phi"] == checked["boundary_phi"]

@@ -177,3 +177,17 @@ def test_field_mirrors_and_marks_nodes(pair):
     bare = plot.plot_field(thin, nodes=False)
     assert len(bare.get_lines()) == len(membrane(bare)) == 2
     plt.close(bare.figure)
+
+
+def test_a_field_without_a_membrane_is_drawn_without_one(pair):
+    _, (thin, _) = pair
+    empty = checkpoint.Checkpoint(nodes=thin.nodes, phi=-np.ones(len(thin.nodes)),
+                                  attrs=thin.attrs)
+
+    ax = plot.plot_field(empty, nodes=False)
+
+    assert membrane(ax) == []
+    plt.close(ax.figure)
+    surface = plot.plot_3d(empty)
+    assert len(surface.collections) == 0
+    plt.close(surface.figure)
