@@ -66,9 +66,9 @@ test: install
 	$(MPIEXEC) -n 2 $(PY) -m pytest -q tests/parallel
 
 tables: install
-	$(PY) -m pfmembrane.tables --np $(NP) --out runs/tables
+	$(PY) -m pfmembrane.studies.tables --np $(NP) --out runs/tables
 
-SEQUENCE = $(PY) -m pfmembrane.sequence --np $(NP)
+SEQUENCE = $(PY) -m pfmembrane.studies.sequence --np $(NP)
 adapt-discocyte: install
 	$(SEQUENCE) options/adapt/discocyte --scene options/discocyte.opts
 adapt-dumbbell: install
@@ -90,34 +90,34 @@ adapt: adapt-discocyte adapt-dumbbell adapt-12271 adapt-24597 adapt-dumbbell-122
 TABLE4_SEQUENCES = $(addprefix options/adapt/,discocyte discocyte_half discocyte_12271 \
                    discocyte_24597 discocyte_24597_half)
 table4: install
-	$(PY) -m pfmembrane.table4 $(TABLE4_SEQUENCES) --out runs/adapt/table4.md
+	$(PY) -m pfmembrane.studies.table4 $(TABLE4_SEQUENCES) --out runs/adapt/table4.md
 
 bench: install
-	$(PY) -m pfmembrane.bench solve --out runs/bench
+	$(PY) -m pfmembrane.studies.bench solve --out runs/bench
 
 bench-basis: install
-	$(PY) -m pfmembrane.bench basis --out runs/bench
+	$(PY) -m pfmembrane.studies.bench basis --out runs/bench
 
 bench-scenes: install
-	$(PY) -m pfmembrane.economy --out runs/bench --np $(NP)
+	$(PY) -m pfmembrane.studies.economy --out runs/bench --np $(NP)
 
 # Both branches run even if one stops early; the target fails if either did. A restarted step
 # starts near its answer, so stage 1 stops after one iteration at its default constraint
 # residual (1e-3); from there stage 2 does not converge at the prolate v = 0.65. It does after
 # a tighter stage 1.
-BRANCH = $(PY) -m pfmembrane.branch --np $(NP) --from 0.95 --to 0.65 --step 0.05 --out runs/branches
+BRANCH = $(PY) -m pfmembrane.studies.branch --np $(NP) --from 0.95 --to 0.65 --step 0.05 --out runs/branches
 BRANCH_OPTIONS = -- -pf_stage1_rtol 1e-5
 branches: install
 	@status=0; \
 	$(BRANCH) --branch oblate $(BRANCH_OPTIONS) || status=1; \
 	$(BRANCH) --branch prolate $(BRANCH_OPTIONS) || status=1; \
-	$(PY) -m pfmembrane.branch --plot runs/branches && exit $$status
+	$(PY) -m pfmembrane.studies.branch --plot runs/branches && exit $$status
 
 figures: install
-	$(PY) -m pfmembrane.figures --out runs/figures
+	$(PY) -m pfmembrane.studies.figures --out runs/figures
 
 extremes: install
-	$(PY) -m pfmembrane.extremes --np $(NP) --out runs/extremes
+	$(PY) -m pfmembrane.studies.extremes --np $(NP) --out runs/extremes
 
 clean:
 	rm -rf $(VENV) runs/check.h5

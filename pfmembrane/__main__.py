@@ -10,7 +10,7 @@ failing rank when only one fails):
 - a solve that did not converge: status 1, its checkpoint marked
   ``converged = 0``;
 - SIGTERM or SIGINT: the current iterate checkpointed (``converged = 0``),
-  status 128 + the signal number (see `pfmembrane.faults`);
+  status 128 + the signal number (see `pfmembrane.parallel.faults`);
 - a PETSc error: status 3;
 - an unexpected exception on one rank aborts COMM_WORLD (status 4), so no
   rank hangs in a collective waiting for it.
@@ -88,8 +88,9 @@ initialize()
 
 from petsc4py import PETSc  # noqa: E402
 
-from . import faults, options  # noqa: E402
-from .checkpoint import CheckpointError  # noqa: E402
+from pfmembrane.parallel import faults
+from pfmembrane.io import options  # noqa: E402
+from pfmembrane.io.checkpoint import CheckpointError  # noqa: E402
 
 
 def precheck(opts, comm):
@@ -107,7 +108,7 @@ def main():
     faults.install()
     try:
         precheck(opts, comm)
-        from .app import run
+        from pfmembrane.cli.app import run
         status = run(comm)
         if status == 0:
             options.check_unused(opts, comm.tompi4py(), given)

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from pfmembrane import bench
+from pfmembrane.studies import bench
 
 MPI_ENV = {'OMPI_ALLOW_RUN_AS_ROOT': '1', 'OMPI_ALLOW_RUN_AS_ROOT_CONFIRM': '1',
            'OMPI_MCA_rmaps_base_oversubscribe': '1',

@@ -1,5 +1,5 @@
-"""The continuation along a branch (`pfmembrane.branch`, real mpiexec runs) and the
-figures of existing checkpoints (`pfmembrane.figures`)."""
+"""The continuation along a branch (`pfmembrane.studies.branch`, real mpiexec runs) and the
+figures of existing checkpoints (`pfmembrane.studies.figures`)."""
 import math
 import os
 import subprocess
@@ -13,8 +13,12 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane import branch, checkpoint, figures, nodes, sizing  # noqa: E402
-from pfmembrane.initial import spheroid_axes, spheroid_phi  # noqa: E402
+from pfmembrane.studies import branch
+from pfmembrane.io import checkpoint
+from pfmembrane.studies import figures
+from pfmembrane.kernels import nodes
+from pfmembrane.analysis import sizing  # noqa: E402
+from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
@@ -25,7 +29,7 @@ SMALL = ['--branch', 'oblate', '--from', '0.95', '--to', '0.9', '--step', '0.05'
 
 
 def run_branch(*args):
-    return subprocess.run([sys.executable, '-m', 'pfmembrane.branch', *map(str, args)], cwd=ROOT,
+    return subprocess.run([sys.executable, '-m', 'pfmembrane.studies.branch', *map(str, args)], cwd=ROOT,
                           env=ENV, capture_output=True, text=True, timeout=240)
 
 
@@ -113,4 +117,4 @@ def test_figures_skip_what_is_missing(tmp_path, capsys):
     index = (out / 'index.md').read_text()
     assert '[discocyte/O1_eps0.06_nodes.png]' in index
     assert 'adapt/dumbbell' in index and 'not an HDF5 file' in index
-    assert 'pfmembrane.figures' in capsys.readouterr().err
+    assert 'pfmembrane.studies.figures' in capsys.readouterr().err

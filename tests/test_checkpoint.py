@@ -1,4 +1,4 @@
-"""Tests of pfmembrane.checkpoint: round trip, atomic replacement, rejection
+"""Tests of pfmembrane.io.checkpoint: round trip, atomic replacement, rejection
 of bad files, MPI collectivity and the XDMF description."""
 
 import os
@@ -15,8 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
-from pfmembrane import checkpoint
-from pfmembrane.checkpoint import CheckpointError
+from pfmembrane.io import checkpoint
+from pfmembrane.io.checkpoint import CheckpointError
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = (1.0, 2.0)
@@ -185,7 +185,7 @@ def test_failed_write_keeps_previous_file(tmp_path):
 KILL_AT_FSYNC = """
 import os, sys, time
 import numpy as np
-from pfmembrane import checkpoint
+from pfmembrane.io import checkpoint
 
 def stall(fd):
     print("fsync", flush=True)
@@ -227,7 +227,7 @@ def test_sigkill_before_replace_keeps_previous_file(tmp_path):
 WRITE_FOREVER = """
 import os, sys
 import numpy as np
-from pfmembrane import checkpoint
+from pfmembrane.io import checkpoint
 
 # fsync guards against power loss, not against a killed process; skipping it
 # keeps the loop writing nearly all the time, so the kill lands mid-write.
@@ -379,7 +379,7 @@ import sys
 from pathlib import Path
 import numpy as np
 from mpi4py import MPI
-from pfmembrane import checkpoint
+from pfmembrane.io import checkpoint
 
 comm = MPI.COMM_WORLD
 rank = comm.Get_rank()

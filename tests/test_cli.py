@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from pfmembrane import checkpoint
+from pfmembrane.io import checkpoint
 from test_faults import MID_STAGE1, Run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

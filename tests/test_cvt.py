@@ -1,10 +1,10 @@
-"""Tests of the CVT node relocation in pfmembrane.cvt."""
+"""Tests of the CVT node relocation in pfmembrane.kernels.cvt."""
 
 import numpy as np
 import pytest
 from scipy.spatial import Delaunay, cKDTree
 
-from pfmembrane import cvt, nodes as nodesets
+from pfmembrane.kernels import cvt, nodes as nodesets
 
 BOX = (1.0, 2.0)
 

@@ -1,4 +1,4 @@
-"""The stability study driver (`pfmembrane.extremes`): two cheap cases through real mpiexec
+"""The stability study driver (`pfmembrane.studies.extremes`): two cheap cases through real mpiexec
 runs, and the verdicts and table cells of synthetic rows."""
 import json
 import math
@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from pfmembrane import extremes
+from pfmembrane.studies import extremes
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = {'OMPI_ALLOW_RUN_AS_ROOT': '1', 'OMPI_ALLOW_RUN_AS_ROOT_CONFIRM': '1',

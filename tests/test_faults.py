@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from pfmembrane import checkpoint, faults
+from pfmembrane.io import checkpoint
+from pfmembrane.parallel import faults
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
@@ -35,7 +36,7 @@ import os, runpy, sys, time
 if os.environ.get('OMPI_COMM_WORLD_RANK') == '1':
     import petsc4py
     petsc4py.init(sys.argv)
-    from pfmembrane import solver
+    from pfmembrane.parallel import solver
     evaluate, calls = solver.Solver.evaluate, []
 
     def faulty(self, x):

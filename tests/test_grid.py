@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from pfmembrane import nodes, quadrature
-from pfmembrane.initial import rescaled_phi, spheroid_area, spheroid_axes
+from pfmembrane.kernels import nodes, quadrature
+from pfmembrane.kernels.initial import rescaled_phi, spheroid_area, spheroid_axes
 
 BOX = (1.5, 2.0)
 

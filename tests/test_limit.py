@@ -1,4 +1,4 @@
-"""Tests of pfmembrane.limit: extrapolation, level set, distances, CLI."""
+"""Tests of pfmembrane.analysis.limit: extrapolation, level set, distances, CLI."""
 
 import matplotlib
 
@@ -8,8 +8,9 @@ import numpy as np  # noqa: E402
 from matplotlib.path import Path  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane import checkpoint, limit  # noqa: E402
-from pfmembrane import nodes as nodesets  # noqa: E402
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit  # noqa: E402
+from pfmembrane.kernels import nodes as nodesets  # noqa: E402
 
 BOX = (0.6, 1.0)
 R, ZC = 0.3, 0.5          # sphere of radius R centred on the axis at z = Zb / 2
@@ -268,7 +269,7 @@ def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, mon
     """A converged run measures phi_h before it writes its checkpoint: a level set
     whose projection fails must cost the comparison, not the run."""
     from petsc4py import PETSc
-    from pfmembrane import app
+    from pfmembrane.cli import app
 
     def fails(*args, **kwargs):
         raise RuntimeError("the projection onto phi_h = 0 did not converge")

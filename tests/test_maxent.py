@@ -6,7 +6,7 @@ import scipy.sparse
 from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import Delaunay
 
-from pfmembrane.maxent import interpolate, local_maxent, support_radius
+from pfmembrane.kernels.maxent import interpolate, local_maxent, support_radius
 
 BOX = np.array([1.0, 1.5])
 GAMMAS = (0.6, 0.8, 1.0, 2.0, 4.0, 6.0)

@@ -17,9 +17,9 @@ from hypothesis import event, given, settings, strategies as st  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from pfmembrane import options  # noqa: E402
-from pfmembrane.initial import spheroid_axes  # noqa: E402
-from pfmembrane.options import Params, UsageError  # noqa: E402
+from pfmembrane.io import options  # noqa: E402
+from pfmembrane.kernels.initial import spheroid_axes  # noqa: E402
+from pfmembrane.io.options import Params, UsageError  # noqa: E402
 
 # The small scene of the command-line tests, as option strings.
 SCENE = {'eps': '0.06', 'box': '0.8,1.0', 'nodes': '1000', 'radius': '0.4',
@@ -168,7 +168,7 @@ def test_output_path_checked_before_the_run(tmp_path):
 
 @pytest.mark.parametrize('branch, box', [('oblate', (0.78, 0.98)), ('prolate', (0.55, 2.04))])
 def test_an_auto_box_holds_the_shapes_with_seven_eps_to_spare(branch, box):
-    from pfmembrane import sizing
+    from pfmembrane.analysis import sizing
     p = read({'box': 'auto', 'branch': branch, 'eps': '0.04'})
     assert p.box == box
     r, z = np.max(list(sizing.extents(branch, 0.8, 0.4).values()), axis=0) + 7 * 0.04

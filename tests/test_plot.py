@@ -1,4 +1,4 @@
-"""Tests of pfmembrane.plot on synthetic checkpoints of an ellipse."""
+"""Tests of pfmembrane.analysis.plot on synthetic checkpoints of an ellipse."""
 
 import os
 import subprocess
@@ -14,7 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane import checkpoint, limit, plot  # noqa: E402
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit, plot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = (1.0, 2.0)
@@ -58,7 +59,7 @@ def run_plot(*args, cwd=None):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
         [str(ROOT)] + [p for p in [env.get("PYTHONPATH")] if p])
-    return subprocess.run([sys.executable, "-m", "pfmembrane.plot",
+    return subprocess.run([sys.executable, "-m", "pfmembrane.analysis.plot",
                            *map(str, args)], capture_output=True, text=True,
                           env=env, cwd=cwd, timeout=TIMEOUT)
 

@@ -6,8 +6,9 @@ import os
 import h5py
 import pytest
 
-from pfmembrane import checkpoint, sequence
-from pfmembrane.paper import SHARP, SHARP_ERROR
+from pfmembrane.io import checkpoint
+from pfmembrane.studies import sequence
+from pfmembrane.scenes import SHARP, SHARP_ERROR
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'

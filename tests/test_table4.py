@@ -3,8 +3,8 @@ least energy of its converged steps, a half box is compared with the paper's
 full-box row, and differences beyond 0.1 points are counted as misses."""
 import h5py
 
-from pfmembrane import table4
-from pfmembrane.paper import SHARP, SHARP_ERROR
+from pfmembrane.studies import table4
+from pfmembrane.scenes import SHARP, SHARP_ERROR
 from test_sequence import fake_checkpoint
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from pfmembrane import adapt, maxent, nodes
-from pfmembrane.discretization import folded_basis, locality
+from pfmembrane.kernels import adapt, maxent, nodes
+from pfmembrane.parallel.discretization import folded_basis, locality
 
 BOX, EPS = (1.0, 1.4), 0.05
 

@@ -7,10 +7,10 @@ import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from pfmembrane import nodes
-from pfmembrane.assembly import Problem
-from pfmembrane.discretization import Grid
-from pfmembrane.initial import spheroid_axes, spheroid_phi
+from pfmembrane.kernels import nodes
+from pfmembrane.parallel.assembly import Problem
+from pfmembrane.parallel.discretization import Grid
+from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
 
 BOX, R, EPS = (1.0, 1.4), 0.4, 0.12
 

@@ -7,8 +7,8 @@ import pytest
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from pfmembrane import nodes
-from pfmembrane.discretization import Grid
+from pfmembrane.kernels import nodes
+from pfmembrane.parallel.discretization import Grid
 
 
 @pytest.fixture(scope='module', params=[1, 4])

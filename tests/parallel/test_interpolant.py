@@ -7,10 +7,10 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.integrate import quad
 
-from pfmembrane import nodes
-from pfmembrane.assembly import Problem
-from pfmembrane.discretization import Grid
-from pfmembrane.functionals import F_A
+from pfmembrane.kernels import nodes
+from pfmembrane.parallel.assembly import Problem
+from pfmembrane.parallel.discretization import Grid
+from pfmembrane.kernels.functionals import F_A
 
 R, EPS, BOX, ZC = 0.4, 0.04, (0.65, 1.3), 0.65
 
@@ -61,7 +61,7 @@ def test_sphere_area_and_volume_converge_at_second_order():
 
 def test_axis_is_a_symmetry_line():
     """With mirror nodes, phi_r = 0 on the axis and phi_r / r tends to a finite limit."""
-    from pfmembrane import maxent
+    from pfmembrane.kernels import maxent
     xy = nodes.uniform(BOX, 1200)
     beta = 0.8 / nodes.nodal_spacing(xy) ** 2
     aug, baug, owner = nodes.with_mirrors(xy, beta, maxent.support_radius(beta))

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from pfmembrane import nodes
-from pfmembrane.assembly import Problem
-from pfmembrane.discretization import Grid
-from pfmembrane.initial import spheroid_axes, spheroid_phi
+from pfmembrane.kernels import nodes
+from pfmembrane.parallel.assembly import Problem
+from pfmembrane.parallel.discretization import Grid
+from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
 
 BOX, R, EPS, N = (1.5, 2.0), 0.4, 0.08, 1100
 A0, V0 = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3

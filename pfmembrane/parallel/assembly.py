@@ -9,7 +9,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .functionals import Functionals
+from pfmembrane.kernels.functionals import Functionals
 
 
 class Problem:

@@ -2,20 +2,20 @@
 
 Command line::
 
-    python -m pfmembrane.plot CHECKPOINT.h5 [more.h5 ...] [-o OUTDIR]
+    python -m pfmembrane.analysis.plot CHECKPOINT.h5 [more.h5 ...] [-o OUTDIR]
         [--what field,nodes,section,3d,spacing] [--z-mid Z] [--dpi DPI]
 
 writes ``<stem>_<what>.png`` for every checkpoint and figure (the
 ``section`` figure gathers all checkpoints and is named after the first one)
 into OUTDIR, by default the checkpoint's directory, and prints each path.
 
-The figures show the max-ent approximant phi_h (`pfmembrane.limit.PhaseField`),
+The figures show the max-ent approximant phi_h (`pfmembrane.analysis.limit.PhaseField`),
 not the nodal coefficients, which it does not interpolate: on a graded grid
 they oscillate far outside [-1, 1] (-3.6 ... 6.1 on the dumbbell's P14 at
 eps 0.01, where phi_h stays within 1e-3 of it) and cross zero away from the
 membrane. Colour maps interpolate phi_h at the nodes linearly on their
 Delaunay triangulation; sections evaluate phi_h on the line; the membrane is
-the level set phi_h = 0 (`pfmembrane.limit.level_set`).
+the level set phi_h = 0 (`pfmembrane.analysis.limit.level_set`).
 """
 
 import argparse
@@ -27,8 +27,9 @@ import matplotlib.pyplot as plt
 import matplotlib.tri as mtri
 import numpy as np
 
-from pfmembrane import checkpoint, limit
-from pfmembrane.nodes import nodal_spacing
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit
+from pfmembrane.kernels.nodes import nodal_spacing
 
 __all__ = ["FIGURES", "triangulation",
            "plot_field", "plot_section", "plot_3d", "plot_spacing", "main"]
@@ -43,7 +44,7 @@ def triangulation(ckpt):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint
+    ckpt : pfmembrane.io.checkpoint.Checkpoint
 
     Returns
     -------
@@ -59,7 +60,7 @@ def plot_field(ckpt, ax=None, nodes=True):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint
+    ckpt : pfmembrane.io.checkpoint.Checkpoint
     ax : matplotlib.axes.Axes, optional
         Axes to draw into; a new figure by default.
     nodes : bool
@@ -104,7 +105,7 @@ def plot_section(ckpts, ax=None, z_mid=None, samples=400):
 
     Parameters
     ----------
-    ckpts : sequence of pfmembrane.checkpoint.Checkpoint
+    ckpts : sequence of pfmembrane.io.checkpoint.Checkpoint
         Checkpoints to compare, e.g. for several eps.
     ax : matplotlib.axes.Axes, optional
         Axes to draw into; a new figure by default.
@@ -141,13 +142,13 @@ def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint
+    ckpt : pfmembrane.io.checkpoint.Checkpoint
     ax : mpl_toolkits.mplot3d.axes3d.Axes3D, optional
         3D axes to draw into; a new figure by default.
     n_theta : int
         Number of meridians.
     curve : list of ndarray, optional
-        The membrane (`pfmembrane.limit.membrane`), if the caller has it.
+        The membrane (`pfmembrane.analysis.limit.membrane`), if the caller has it.
 
     Returns
     -------
@@ -182,7 +183,7 @@ def plot_spacing(ckpt, ax=None, bins=40):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint
+    ckpt : pfmembrane.io.checkpoint.Checkpoint
     ax : matplotlib.axes.Axes, optional
         Axes to draw into; a new figure by default.
     bins : int
@@ -224,7 +225,7 @@ def main(argv=None):
     try:
         ckpts = [checkpoint.read(path).unfolded() for path in args.checkpoints]
     except checkpoint.CheckpointError as exc:
-        print(f"pfmembrane.plot: error: {exc}", file=sys.stderr)
+        print(f"pfmembrane.analysis.plot: error: {exc}", file=sys.stderr)
         return 1
     draw = {
         "field": lambda ckpt: plot_field(ckpt, nodes=False),
@@ -244,7 +245,7 @@ def main(argv=None):
 
 def _parser():
     parser = argparse.ArgumentParser(
-        prog="python -m pfmembrane.plot",
+        prog="python -m pfmembrane.analysis.plot",
         description="Plot pfmembrane checkpoints as PNG files.")
     parser.add_argument("checkpoints", nargs="+", metavar="CHECKPOINT.h5")
     parser.add_argument("-o", "--outdir",

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from . import sharp
-from .initial import spheroid_axes
+from pfmembrane.analysis import sharp
+from pfmembrane.kernels.initial import spheroid_axes
 
 AUTO_MARGIN = 7.0
 AUTO_STEP = 0.01  # an automatic box is rounded up to a multiple of this
@@ -24,7 +24,7 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
     -------
     dict
         ``sharp``: (max r, max |z - z_centroid|) of the sharp-interface shape
-        (`pfmembrane.sharp.solve`), absent where that solver loses the branch;
+        (`pfmembrane.analysis.sharp.solve`), absent where that solver loses the branch;
         ``spheroid``: semi-axes (a, c) of the initial spheroid a fresh run
         starts from.
     """

@@ -213,7 +213,7 @@ def validate(p):
 
 def auto_box(p):
     """The box of `-pf_box auto` for a fresh start (`sizing.auto_box`)."""
-    from .sizing import auto_box as sized
+    from pfmembrane.analysis.sizing import auto_box as sized
     check_fits(replace(p, box=(math.inf, math.inf)))  # refuses a scene without a spheroid
     return sized(p.branch, p.reduced_volume, p.eps, p.radius, p.c0, p.k)
 
@@ -221,7 +221,7 @@ def auto_box(p):
 def check_fits(p):
     """Semi-axes (a, c) of the initial spheroid of the branch, which with a
     3 eps margin must fit the box."""
-    from .initial import spheroid_axes
+    from pfmembrane.kernels.initial import spheroid_axes
     scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
              f"-pf_branch {p.branch}")
     try:

@@ -1,6 +1,6 @@
 """Regenerate the paper's uniform-grid tables (Tables 1 and 2) under runs/.
 
-    python -m pfmembrane.tables [--np 2] [--out runs/tables] [--nodes 6124,12271,24597]
+    python -m pfmembrane.studies.tables [--np 2] [--out runs/tables] [--nodes 6124,12271,24597]
 
 Each entry is one `mpiexec -n NP python -m pfmembrane` run; its checkpoint
 gives the energy, iterations, wall time and peak memory per rank.
@@ -10,8 +10,8 @@ import os
 
 import h5py
 
-from . import launch
-from .paper import FINEST, UNIFORM
+from pfmembrane.studies import launch
+from pfmembrane.scenes import FINEST, UNIFORM
 
 SCENE = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 

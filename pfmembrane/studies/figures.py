@@ -1,19 +1,19 @@
 """The figures of the README, regenerated from existing checkpoints.
 
-    python -m pfmembrane.figures [--runs runs] [--out runs/figures] [--dpi 150]
+    python -m pfmembrane.studies.figures [--runs runs] [--out runs/figures] [--dpi 150]
 
 For the discocyte and the dumbbell it reads the checkpoints of the adaptive sequence,
 RUNS/adapt/<shape>/<grid>_eps<eps>.h5, and the single run RUNS/<shape>.h5, those that exist,
-and draws with `pfmembrane.plot` and `pfmembrane.limit`:
+and draws with `pfmembrane.analysis.plot` and `pfmembrane.analysis.limit`:
 
 - the phase field with the nodes of every checkpoint (Figures 7, 10);
 - phi along the cutline z = Zb / 2 for the smallest eps of every grid of the sequence, with a
   zoom on the interface and the sharp-interface step (Figure 8c-e);
 - the nodal spacing histograms of the grids of the sequence (Figure B.11);
 - the zero level sets of the same checkpoints against the sharp interface (Figure 8b, by
-  `python -m pfmembrane.limit`, which also writes its table);
+  `python -m pfmembrane.analysis.limit`, which also writes its table);
 - the discocyte and the dumbbell revolved about the axis (Figure 5), and the shapes of the
-  branches under RUNS/branches (Figure 6, `python -m pfmembrane.branch`).
+  branches under RUNS/branches (Figure 6, `python -m pfmembrane.studies.branch`).
 
 A missing or unreadable checkpoint is skipped with a note, never an error. OUT/index.md lists
 the figures, the checkpoints each one shows, and the notes.
@@ -30,9 +30,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.path import Path
 
-from . import checkpoint, limit, plot
-from .branch import checkpoints as branch_checkpoints
-from .sequence import grid_name
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit, plot
+from pfmembrane.studies.branch import checkpoints as branch_checkpoints
+from pfmembrane.studies.sequence import grid_name
 
 # Shape name and the paper's figure of its adapted grids.
 SHAPES = (('discocyte', '7'), ('dumbbell', '10'))
@@ -64,12 +65,12 @@ class Index:
     def note(self, text):
         """Record what was skipped and why; also reported on stderr."""
         self.notes.append(text)
-        print(f"pfmembrane.figures: {text}", file=sys.stderr)
+        print(f"pfmembrane.studies.figures: {text}", file=sys.stderr)
 
     def write(self, runs):
         """Write OUT/index.md; returns its path."""
         lines = ['# Figures', '',
-                 f"Regenerated from the checkpoints under `{runs}` by `python -m pfmembrane.figures "
+                 f"Regenerated from the checkpoints under `{runs}` by `python -m pfmembrane.studies.figures "
                  f"--runs {runs} --out {self.out}` (`make figures`).", '',
                  '| figure | paper | checkpoints |', '|---|---|---|']
         lines += [f"| [{name}]({name}) | {paper} | {sources} |" for name, paper, sources in self.rows]
@@ -181,7 +182,7 @@ def spacing_figure(shape, ckpts, index, dpi):
 
 
 def limit_figure(shape, paths, index):
-    """Figure 8b and its table, by the command line of `pfmembrane.limit`."""
+    """Figure 8b and its table, by the command line of `pfmembrane.analysis.limit`."""
     out = os.path.join(index.out, f"{shape}_limit")
     errors = io.StringIO()
     with contextlib.redirect_stderr(errors):
@@ -195,7 +196,7 @@ def limit_figure(shape, paths, index):
 
 def revolved(figure, ckpts):
     """One 3D axes per checkpoint, in a row of `figure`, with its membrane revolved
-    (`pfmembrane.plot.plot_3d`), all framed at one scale on the membranes: plot_3d
+    (`pfmembrane.analysis.plot.plot_3d`), all framed at one scale on the membranes: plot_3d
     shows the whole box, where a vesicle is small. Returns the axes."""
     curves = [limit.membrane(c) for c in ckpts]
     axes = [plot.plot_3d(c, ax=figure.add_subplot(1, len(ckpts), i, projection='3d'), curve=curve)
@@ -251,7 +252,7 @@ def branch_figures(directory, index, dpi):
 
 def main(argv=None):
     """Write every figure the existing checkpoints allow; returns 0."""
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.figures',
+    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.figures',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('--runs', default='runs', help='directory of the runs (default: runs)')
     ap.add_argument('--out', default=os.path.join('runs', 'figures'))

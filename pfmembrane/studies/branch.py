@@ -1,8 +1,8 @@
 """Continuation of an equilibrium branch in the reduced volume (paper Figure 6).
 
-    python -m pfmembrane.branch --branch oblate --from 0.95 --to 0.65 --step 0.05 --out runs/branches
+    python -m pfmembrane.studies.branch --branch oblate --from 0.95 --to 0.65 --step 0.05 --out runs/branches
         [--np 2] [--eps 0.04] [--nodes 6124] [--box Rb,Zb] [--force] [-- SOLVER OPTIONS]
-    python -m pfmembrane.branch --plot runs/branches
+    python -m pfmembrane.studies.branch --plot runs/branches
 
 The first reduced volume is solved from the spheroid initial guess of the branch; every next
 one restarts from the checkpoint of the previous one on the same grid (`-pf_restart PREV.h5
@@ -31,11 +31,12 @@ import time
 import h5py
 import numpy as np
 
-from . import checkpoint, launch
-from .nodes import nodal_spacing, uniform
-from .options import BRANCHES
-from .sequence import option_of
-from .sizing import required_box
+from pfmembrane.io import checkpoint
+from pfmembrane.studies import launch
+from pfmembrane.kernels.nodes import nodal_spacing, uniform
+from pfmembrane.io.options import BRANCHES
+from pfmembrane.studies.sequence import option_of
+from pfmembrane.analysis.sizing import required_box
 
 SCENE = os.path.join('options', 'branch', '{}.opts')
 PAPER_BOX = (1.5, 2.0)
@@ -200,7 +201,7 @@ def header(branch, vs, box, need, sizes, given, args):
         "`sharp_energy`); error vs sharp = (E - E_sharp) / E_sharp; d max: largest distance from "
         "phi_h = 0 to the sharp curve (a jump to another branch shows here). run s: the run's "
         "own wall time; wall s: this invocation's, mpiexec included.\n\n"
-        f"Regenerate: `python -m pfmembrane.branch --branch {branch} --from {vs[0]:g} "
+        f"Regenerate: `python -m pfmembrane.studies.branch --branch {branch} --from {vs[0]:g} "
         f"--to {vs[-1]:g} --step {args.step:g} --out {args.out} --np {args.np} --eps {args.eps:g} "
         f"--nodes {args.nodes}{f' --box {rb:g},{zb:g}' if given else ''} --force"
         f"{' -- ' + ' '.join(args.options) if args.options else ''}`.\n\n")
@@ -211,14 +212,14 @@ def continuation(args):
     try:
         vs = volumes(args.start, args.stop, args.step)
     except ValueError as e:
-        print(f"pfmembrane.branch: {e}", file=sys.stderr)
+        print(f"pfmembrane.studies.branch: {e}", file=sys.stderr)
         return 2
     scene = SCENE.format(args.branch)
     radius, c0, k = (scene_value(scene, name) for name in ('radius', 'c0', 'k'))
     need, sizes = required_box(args.branch, vs, args.eps, radius, c0, k, margin=MARGIN)
     box = args.box or default_box(need)
     if box[0] < need[0] or box[1] < need[1]:
-        print(f"pfmembrane.branch: --box {box[0]:g},{box[1]:g} cannot hold the {args.branch} "
+        print(f"pfmembrane.studies.branch: --box {box[0]:g},{box[1]:g} cannot hold the {args.branch} "
               f"branch from v = {vs[0]:g} to {vs[-1]:g} with a margin of {MARGIN:g} eps: "
               f"need Rb >= {need[0]:.4f}, Zb >= {need[1]:.4f}", file=sys.stderr)
         return 2
@@ -261,9 +262,9 @@ def plot(directory, dpi=150):
     energies and the shapes.
 
     Not collective.  Phase-field energies are points (open where a run did not
-    converge); the sharp-interface energies (`pfmembrane.limit.reference`) are
+    converge); the sharp-interface energies (`pfmembrane.analysis.limit.reference`) are
     lines on a v grid `SHARP_DV` apart up to the sphere, v = 1. Below, one strip
-    per branch shows the zero level set of phi_h (`pfmembrane.limit.level_set`)
+    per branch shows the zero level set of phi_h (`pfmembrane.analysis.limit.level_set`)
     of each checkpoint at its v, mirrored about the axis, over the sharp curve,
     all at one scale.
 
@@ -277,7 +278,7 @@ def plot(directory, dpi=150):
     import matplotlib.pyplot as plt
     from matplotlib.transforms import blended_transform_factory
     # limit initializes PETSc, hence MPI: a process that starts mpiexec must not.
-    from .limit import membrane, reference
+    from pfmembrane.analysis.limit import membrane, reference
 
     found = {branch: [c for _, c in pairs] for branch, pairs in checkpoints(directory).items()}
     if not found:
@@ -365,7 +366,7 @@ def _box(text):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.branch',
+    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.branch',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('--branch', choices=BRANCHES)
     ap.add_argument('--from', dest='start', type=float, default=0.95, help='first reduced volume')
@@ -386,7 +387,7 @@ def main(argv=None):
         try:
             print(plot(args.plot))
         except FileNotFoundError as e:
-            print(f"pfmembrane.branch: {e}", file=sys.stderr)
+            print(f"pfmembrane.studies.branch: {e}", file=sys.stderr)
             return 1
         return 0
     if not args.branch:

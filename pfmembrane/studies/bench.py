@@ -1,12 +1,12 @@
 """Speed and accuracy benchmarks under runs/bench/.
 
-    python -m pfmembrane.bench basis [--out runs/bench] [--nodes 6124,24597,98388] [--np 1,2]
-    python -m pfmembrane.bench solve [--out runs/bench] [--quick] [--force]
+    python -m pfmembrane.studies.bench basis [--out runs/bench] [--nodes 6124,24597,98388] [--np 1,2]
+    python -m pfmembrane.studies.bench solve [--out runs/bench] [--quick] [--force]
 
 `basis` times the set-up of uniform grids (node generation, nodal spacing,
 triangulation and partition, max-ent basis) and reports their size, the mean
 support of the basis and the peak memory per rank; each measurement is one
-`mpiexec -n NP python -m pfmembrane.bench basis-one` that prints a JSON line.
+`mpiexec -n NP python -m pfmembrane.studies.bench basis-one` that prints a JSON line.
 
 `solve` runs the configurations of RUNS (one `mpiexec -n NP python -m
 pfmembrane` each, reusing a checkpoint that exists unless --force), compares
@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
-from . import launch, paper
+from pfmembrane.studies import launch
+from pfmembrane import scenes as paper
 
 # The paper's finest uniform grid (296,344 nodes) per eps, and the sharp interface.
 BRANCH = {'discocyte': 'oblate', 'dumbbell': 'prolate'}
@@ -196,7 +197,8 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
     """
     from mpi4py import MPI
 
-    from . import discretization, maxent, nodes as nodesets, quadrature
+    from pfmembrane.parallel import discretization
+    from pfmembrane.kernels import maxent, nodes as nodesets, quadrature
 
     mpi = comm.tompi4py()
     rss_start = _peak_rss_mb()
@@ -260,7 +262,7 @@ def basis_one(args):
     try:
         result = measure_grid(comm, args.nodes)
     except BaseException as e:  # noqa: BLE001 - one rank's failure must end all ranks
-        sys.stderr.write(f"pfmembrane.bench: rank {comm.getRank()}: {type(e).__name__}: {e}\n")
+        sys.stderr.write(f"pfmembrane.studies.bench: rank {comm.getRank()}: {type(e).__name__}: {e}\n")
         sys.stderr.flush()
         comm.tompi4py().Abort(4)
     if comm.getRank() == 0:
@@ -288,11 +290,11 @@ def basis(args):
     results = []
     for n in (int(v) for v in args.nodes.split(',')):
         for ranks in (int(v) for v in args.np.split(',')):
-            cmd = launch.command(ranks, 'basis-one', '--nodes', str(n), module='pfmembrane.bench')
+            cmd = launch.command(ranks, 'basis-one', '--nodes', str(n), module='pfmembrane.studies.bench')
             print(' '.join(cmd), flush=True)
             proc = launch.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
             if proc.returncode != 0:
-                raise SystemExit(f"pfmembrane.bench: exit status {proc.returncode} from "
+                raise SystemExit(f"pfmembrane.studies.bench: exit status {proc.returncode} from "
                                  f"{' '.join(cmd)}")
             results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
             print(basis_row(results[-1]), flush=True)

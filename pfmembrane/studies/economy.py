@@ -1,6 +1,6 @@
 """Scene economy: what the half box and an automatic box save on the paper's scenes.
 
-    python -m pfmembrane.economy [--out runs/bench] [--eps 0.04] [--nodes 6124] [--np 2] [--force]
+    python -m pfmembrane.studies.economy [--out runs/bench] [--eps 0.04] [--nodes 6124] [--np 2] [--force]
 
 For the discocyte and the dumbbell, four runs at one nodal spacing: the paper's
 box with --nodes nodes, its half z >= Zb/2 with the mirror plane
@@ -18,9 +18,11 @@ import os
 
 import numpy as np
 
-from . import bench, checkpoint, limit, sizing
-from .functionals import F_E
-from .options import Params
+from pfmembrane.studies import bench
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit, sizing
+from pfmembrane.kernels.functionals import F_E
+from pfmembrane.io.options import Params
 
 VARIANTS = ('paper box', 'paper half box', 'auto box', 'auto half box')
 PAPER_BOX = Params().box
@@ -78,7 +80,7 @@ def markdown(rows, args):
         f"{PAPER_BOX[0]:g} x {PAPER_BOX[1]:g} with `-pf_nodes {args.nodes}`; an auto box gets the "
         "node count that keeps the same nodal spacing. Half boxes hold the nodes with "
         "z >= Zb/2 of the same lattice, and solve without the moment constraint. "
-        f"Regenerate: `python -m pfmembrane.economy --eps {args.eps:g} --nodes {args.nodes} "
+        f"Regenerate: `python -m pfmembrane.studies.economy --eps {args.eps:g} --nodes {args.nodes} "
         f"--np {args.np} --force`.\n",
         '| scene | variant | box | nodes | E | vs paper box | nu_A | nu_V | its (1+2) | wall s '
         '| speed-up | peak MB/rank | bulk 1+phi | nu_V eps^3 / (8 f_E) | bulk share of V0 '
@@ -112,7 +114,7 @@ def main(argv=None):
     for scene, variant, config in configurations(args):
         path, why = bench.run(config, directory, args.force)
         if why is not None:
-            raise SystemExit(f"pfmembrane.economy: {config.name}: {why}")
+            raise SystemExit(f"pfmembrane.studies.economy: {config.name}: {why}")
         a = measure(path, args.eps)
         reference.setdefault(scene, a)
         rows.append((scene, variant, a, reference[scene]))

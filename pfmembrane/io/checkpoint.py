@@ -22,7 +22,7 @@ import h5py
 import numpy as np
 import scipy.spatial
 
-from .nodes import unfold
+from pfmembrane.kernels.nodes import unfold
 
 __all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
            "read", "write_xdmf"]

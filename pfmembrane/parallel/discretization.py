@@ -8,10 +8,11 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from . import maxent, nodes as nodesets, quadrature
-from .gram import Gram
-from .nodes import nodal_spacing, nodal_spacings
-from .partition import Layout
+from pfmembrane.kernels import maxent, nodes as nodesets, quadrature
+from pfmembrane.kernels.gram import Gram
+from pfmembrane.kernels.basis import folded_basis
+from pfmembrane.kernels.nodes import nodal_spacings
+from pfmembrane.parallel.partition import Layout
 
 POINT_CHUNK = 16384  # quadrature points per max-ent evaluation: bounds the working memory
 
@@ -33,24 +34,6 @@ class Operators(NamedTuple):
     w: np.ndarray
     r: np.ndarray
     z: np.ndarray
-
-
-def locality(nodes, gamma, smoothing, plane=None):
-    """beta_a = gamma / h_a^2 with the smoothed nodal spacing (`nodes.nodal_spacing`)."""
-    return gamma / nodal_spacing(nodes, smoothing=smoothing, plane=plane) ** 2
-
-
-def folded_basis(points, nodes, beta, cutoff, derivatives, plane=None):
-    """Max-ent basis at `points` whose columns are the nodes themselves.
-
-    Not collective. Mirrors (see `nodes.with_mirrors`) enter the sums and
-    each appears under its original's index, so a row may list a node
-    several times; sparse products and `maxent.interpolate` add them.
-    """
-    radius = maxent.support_radius(beta, cutoff)
-    aug, beta_aug, owner = nodesets.with_mirrors(nodes, beta, radius, plane)
-    basis = maxent.local_maxent(points, aug, beta_aug, cutoff, derivatives=derivatives)
-    return basis._replace(indices=owner[basis.indices])
 
 
 class Grid:

@@ -1,7 +1,7 @@
 """Run a progressive adaptive sequence (paper Table B.6) and tabulate it
 (Tables 3, 4 and 5).
 
-    python -m pfmembrane.sequence options/adapt/discocyte --scene options/discocyte.opts
+    python -m pfmembrane.studies.sequence options/adapt/discocyte --scene options/discocyte.opts
 
 Each step is an options file of the directory, run in name order as
 `mpiexec -n NP python -m pfmembrane -options_file SCENE -options_file STEP`;
@@ -20,8 +20,8 @@ import time
 import h5py
 import numpy as np
 
-from . import launch
-from .paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
+from pfmembrane.studies import launch
+from pfmembrane.scenes import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
 
 
 def option_of(step, name):
@@ -170,7 +170,7 @@ def main(argv=None):
         f.write(f"Adaptive sequence `{args.directory}` (scene `{args.scene}`), "
                 f"{'/'.join(map(str, ranks))} MPI ranks, {os.cpu_count()} cores. "
                 + (args.note.rstrip('.') + '. ' if args.note else '')
-                + f"Regenerate: `python -m pfmembrane.sequence {args.directory} "
+                + f"Regenerate: `python -m pfmembrane.studies.sequence {args.directory} "
                 f"--scene {args.scene} --force`.\n\n")
         f.write('\n'.join(rows) + '\n\n')
         f.write(f"Sum of the runs' wall times: {total:.1f} s"

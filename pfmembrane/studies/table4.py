@@ -1,7 +1,7 @@
 """Table 4 of the paper, regenerated from adaptive sequences: the discocyte's
 relative energy error (%) against the sharp interface, per grid and eps.
 
-    python -m pfmembrane.table4 options/adapt/discocyte options/adapt/discocyte_12271 \\
+    python -m pfmembrane.studies.table4 options/adapt/discocyte options/adapt/discocyte_12271 \\
         options/adapt/discocyte_24597 --out runs/adapt/table4.md
 
 Each sequence directory gives one row. Its cell at an eps is the converged
@@ -16,8 +16,8 @@ import sys
 
 import h5py
 
-from .paper import FINEST, SHARP, SHARP_ERROR
-from .sequence import converged, grid_name, output_of, paper_grid, steps_of
+from pfmembrane.scenes import FINEST, SHARP, SHARP_ERROR
+from pfmembrane.studies.sequence import converged, grid_name, output_of, paper_grid, steps_of
 
 COLUMNS = (0.03, 0.025, 0.02, 0.015, 0.01, 0.007, 0.005)
 
@@ -87,7 +87,7 @@ def main(argv=None):
                 f"interface {SHARP['oblate']}; each cell is ours on the named grid (gamma 0.5 "
                 "unless g is given), then (the paper's, ours minus the paper's in points); "
                 "a bracket alone is a paper entry with no converged run here. Regenerate: "
-                f"`python -m pfmembrane.table4 {' '.join(args.directories)} --out {args.out}`.\n\n")
+                f"`python -m pfmembrane.studies.table4 {' '.join(args.directories)} --out {args.out}`.\n\n")
         f.write('\n'.join(rows) + '\n\n')
         f.write(f'{within} of {compared} cells within 0.1 points of the paper.\n')
     print('\n'.join(rows))

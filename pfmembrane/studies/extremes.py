@@ -1,6 +1,6 @@
 """The stability study: the method at the edges of its range, and how each run ends.
 
-    python -m pfmembrane.extremes --out runs/extremes [--np 2] [--force] [--only NAME,...]
+    python -m pfmembrane.studies.extremes --out runs/extremes [--np 2] [--force] [--only NAME,...]
                                   [--timeout 1200]
 
 Each case of `CASES` is one `mpiexec -n NP python -m pfmembrane` run: the scene of its branch
@@ -38,12 +38,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from . import checkpoint, launch
-from .bench import machine, machine_line
-from .checkpoint import CheckpointError
-from .limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
-from .sequence import converged
-from .tables import SCENE
+from pfmembrane.io import checkpoint
+from pfmembrane.studies import launch
+from pfmembrane.studies.bench import machine, machine_line
+from pfmembrane.io.checkpoint import CheckpointError
+from pfmembrane.analysis.limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
+from pfmembrane.studies.sequence import converged
+from pfmembrane.studies.tables import SCENE
 
 # Grid and eps of every case unless its options say otherwise (later options win).
 GRID = ('-pf_nodes', '3000', '-pf_box', '1.5,2', '-pf_eps', '0.06')
@@ -596,7 +597,7 @@ def study(selected, out, nprocs, timeout, force=False):
 def describe(nprocs, timeout, conditions):
     """The paragraph above the table."""
     return (
-        f"Stability study: `python -m pfmembrane.extremes --out OUT --np {nprocs} --force` "
+        f"Stability study: `python -m pfmembrane.studies.extremes --out OUT --np {nprocs} --force` "
         f"(`make extremes`), {nprocs} MPI ranks, one run per case, each limited to "
         f"{timeout:g} s. Unless a case's options say otherwise: the scene of its branch "
         f"(`options/discocyte.opts` or `options/dumbbell.opts`) with `{' '.join(GRID)}`, "
@@ -606,7 +607,7 @@ def describe(nprocs, timeout, conditions):
         "Columns: eps/eps_min against the grid's resolution limit (from the checkpoint, or "
         "from the grid line a refused run prints); E vs: relative to the same scene with one "
         "setting changed; E sharp, vs sharp, d sharp: the axisymmetric sharp-interface shape of "
-        "the scene (`pfmembrane.sharp`; for the sphere E sharp = 2 pi k = 6.28319, the paper's "
+        "the scene (`pfmembrane.analysis.sharp`; for the sphere E sharp = 2 pi k = 6.28319, the paper's "
         "normalization with H the mean curvature), the relative energy error and the largest "
         "distance from phi_h = 0 to its curve; v of phi_h=0: reduced volume of the surface "
         "phi_h = 0 itself; its: stage 1 inner + stage 2 Newton iterations; max abs phi: over "

@@ -1,14 +1,14 @@
 """The sharp-interface limit of phase-field checkpoints.
 
 Compares a phase-field solution with the axisymmetric Canham-Helfrich shape
-of the same scene (`pfmembrane.sharp`): the relative energy error, the
+of the same scene (`pfmembrane.analysis.sharp`): the relative energy error, the
 distance between the zero level set of phi_h and the sharp generating curve
 (Figure 8b of the paper), the Canham-Helfrich energy of that level set, and
 the extrapolation of the energies to eps -> 0.
 
 Command line::
 
-    python -m pfmembrane.limit CHECKPOINT.h5 [more.h5 ...] --out runs/limit/NAME
+    python -m pfmembrane.analysis.limit CHECKPOINT.h5 [more.h5 ...] --out runs/limit/NAME
 
 writes ``NAME.md`` (one row per checkpoint, and the extrapolated energy when
 the checkpoints share one scene and hold at least three distinct eps) and
@@ -32,10 +32,11 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from pfmembrane import checkpoint, sharp
-from pfmembrane.discretization import folded_basis, locality
-from pfmembrane.maxent import interpolate
-from pfmembrane.nodes import raster_axes
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import sharp
+from pfmembrane.kernels.basis import folded_basis, locality
+from pfmembrane.kernels.maxent import interpolate
+from pfmembrane.kernels.nodes import raster_axes
 
 # phi_h one eps inside the box above -1 + BOUNDARY_TOL: for the tanh profile the membrane is
 # then within about 6 eps of the sides where phi = -1 is imposed.
@@ -59,7 +60,7 @@ _NEAREST = 8             # vertices whose segments `distance` searches
 def reference(branch, reduced_volume, c0=0.0, radius=1.0, k=1.0):
     """The sharp-interface shape of a scene, computed once per process.
 
-    Not collective.  One `pfmembrane.sharp.solve` at its default resolution
+    Not collective.  One `pfmembrane.analysis.sharp.solve` at its default resolution
     takes about 0.2 s for v = 0.8 (continuation from the sphere included)
     and 4 ms for the sphere, v = 1; later calls with the same scene return
     the same object.
@@ -78,7 +79,7 @@ def reference(branch, reduced_volume, c0=0.0, radius=1.0, k=1.0):
 
     Returns
     -------
-    pfmembrane.sharp.SharpShape
+    pfmembrane.analysis.sharp.SharpShape
         Shared between callers: its curve arrays are read-only.  The curve
         is centred at z = 0 (volume centroid).
     """
@@ -98,14 +99,14 @@ class PhaseField:
     """phi_h = sum_a p_a(x) phi_a of a checkpoint, with the solver's basis.
 
     Not collective.  The basis is the one of
-    `pfmembrane.discretization.Grid`: beta_a = gamma / h_a^2 with the nodal
+    `pfmembrane.parallel.discretization.Grid`: beta_a = gamma / h_a^2 with the nodal
     spacing h_a, the support cut-off of the checkpoint, and the nodes within
     a support radius of the axis mirrored to r < 0 with their original's
     value, so that phi_h is even in r.
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint or alike
+    ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
         Needs ``nodes``, ``phi`` and ``attrs['gamma']``, ``attrs['cutoff']``.
     """
 
@@ -146,7 +147,7 @@ def level_set(ckpt, samples=400, field=None):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint or alike
+    ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
         See `PhaseField`.
     samples : int
         Number of points over all pieces, shared in proportion to their
@@ -204,7 +205,7 @@ def membrane(ckpt, samples=400, field=None):
 
 def level_set_energy(ckpt, curve, field=None):
     """Canham-Helfrich energy of the membrane phi_h = 0, put on the
-    constraints of the scene (`pfmembrane.sharp.shape_energy`).
+    constraints of the scene (`pfmembrane.analysis.sharp.shape_energy`).
 
     Not collective.  The tangent angle comes from grad phi_h at the points
     of the level set, the arc length from the polyline.  The level set lies
@@ -213,7 +214,7 @@ def level_set_energy(ckpt, curve, field=None):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint or alike
+    ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
         See `compare`; the area and volume are those of its scene's sharp
         shape (`reference`).
     curve : list of ndarray
@@ -224,7 +225,7 @@ def level_set_energy(ckpt, curve, field=None):
     Returns
     -------
     energy, energy_curve : float
-        As `pfmembrane.sharp.shape_energy`; NaN unless the level set is one
+        As `pfmembrane.analysis.sharp.shape_energy`; NaN unless the level set is one
         curve from the axis to the axis.
     """
     attrs = ckpt.attrs
@@ -268,7 +269,7 @@ def distance(curve, shape, centre=0.0):
     ----------
     curve : sequence of ndarray, shape (M, 2)
         Polylines in (r, z), e.g. from `level_set`.
-    shape : pfmembrane.sharp.SharpShape
+    shape : pfmembrane.analysis.sharp.SharpShape
         Its generating curve is centred at z = 0.
     centre : float
         Height to which the sharp curve is shifted: Zb / 2 for a checkpoint.
@@ -334,7 +335,7 @@ def compare(ckpt, samples=400, field=None):
 
     Parameters
     ----------
-    ckpt : pfmembrane.checkpoint.Checkpoint or alike
+    ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
         ``nodes``, ``phi`` and the attributes `SCENE_ATTRS`.
     samples : int
         Points of the level set, see `level_set`.
@@ -557,7 +558,7 @@ def main(argv=None):
         rows = [_row(path, ckpt, args.samples)
                 for path, ckpt in zip(args.checkpoints, ckpts)]
     except (checkpoint.CheckpointError, ValueError, RuntimeError) as exc:
-        print(f"pfmembrane.limit: error: {exc}", file=sys.stderr)
+        print(f"pfmembrane.analysis.limit: error: {exc}", file=sys.stderr)
         return 1
     directory = os.path.dirname(os.path.abspath(args.out))
     os.makedirs(directory, exist_ok=True)
@@ -573,7 +574,7 @@ def main(argv=None):
 
 def _parser():
     parser = argparse.ArgumentParser(
-        prog="python -m pfmembrane.limit",
+        prog="python -m pfmembrane.analysis.limit",
         description="Compare phase-field checkpoints with the sharp-interface "
                     "limit and extrapolate their energies to eps -> 0.")
     parser.add_argument("checkpoints", nargs="+", metavar="CHECKPOINT.h5")
@@ -602,10 +603,10 @@ def _row(path, ckpt, samples):
 
 def _report(args, rows):
     lines = [f"# Sharp-interface limit: {os.path.basename(args.out)}", "",
-             "Generated by `python -m pfmembrane.limit "
+             "Generated by `python -m pfmembrane.analysis.limit "
              + " ".join(args.checkpoints) + f" --out {args.out}`.", "",
              "E_sharp: axisymmetric Canham-Helfrich shape of the same scene "
-             "(`pfmembrane.sharp`); rel error = (E - E_sharp) / E_sharp. "
+             "(`pfmembrane.analysis.sharp`); rel error = (E - E_sharp) / E_sharp. "
              "Distances (units of the box, R = radius) from the zero level "
              "set of the max-ent interpolant phi_h to the sharp curve "
              "centred at z = Zb / 2: max and arc-length mean over the level "
@@ -642,7 +643,7 @@ def _report(args, rows):
         lines += ["## Extrapolation eps -> 0", ""]
         lines += _extrapolation(eps, [row["attrs"]["energy"] for row in rows], e_sharp, "E")
         lines += [
-            "Error estimate (see `pfmembrane.limit.extrapolate`): |E0 - E0_linear| (line "
+            "Error estimate (see `pfmembrane.analysis.limit.extrapolate`): |E0 - E0_linear| (line "
             "through the two smallest eps) + |E0 - E0_reduced| (quadratic without the "
             "largest eps, with four or more eps). It holds only if the energies are in the "
             "asymptotic range of the expansion, which the fit cannot check: on the paper's "

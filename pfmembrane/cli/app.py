@@ -8,13 +8,18 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import adapt, checkpoint, limit, nodes as nodesets, options
-from .assembly import Problem
-from .nodes import spacing_peak
-from .discretization import Grid, locality
-from .initial import rescaled_phi, spheroid_phi
-from .solver import Solver, SolveError
-from .faults import Interrupted
+from pfmembrane.kernels import adapt
+from pfmembrane.io import checkpoint
+from pfmembrane.analysis import limit
+from pfmembrane.kernels import nodes as nodesets
+from pfmembrane.io import options
+from pfmembrane.parallel.assembly import Problem
+from pfmembrane.kernels.nodes import spacing_peak
+from pfmembrane.parallel.discretization import Grid
+from pfmembrane.kernels.basis import locality
+from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
+from pfmembrane.parallel.solver import Solver, SolveError
+from pfmembrane.parallel.faults import Interrupted
 
 # eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
 # distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,

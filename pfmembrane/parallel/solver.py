@@ -10,8 +10,8 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from .faults import poll
-from .options import stage1_penalty
+from pfmembrane.parallel.faults import poll
+from pfmembrane.io.options import stage1_penalty
 
 
 SHIFT_GROWTH = 8.0

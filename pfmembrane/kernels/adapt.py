@@ -11,9 +11,9 @@ import time
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from . import cvt, maxent
-from .discretization import folded_basis
-from .nodes import dirichlet_mask, nodal_spacing, raster_axes, spacing_peak
+from pfmembrane.kernels import cvt, maxent
+from pfmembrane.kernels.basis import folded_basis
+from pfmembrane.kernels.nodes import dirichlet_mask, nodal_spacing, raster_axes, spacing_peak
 
 RASTER = 0.5  # raster spacing / smallest nodal spacing of the old grid
 

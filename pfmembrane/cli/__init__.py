@@ -1,0 +1,1 @@
+"""The command line: `python -m pfmembrane`, a thin layer over the API."""
