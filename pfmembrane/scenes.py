@@ -1,9 +1,12 @@
-"""Published energies (paper Tables 1-5) that runs are compared with.
+"""Scene data: the paper's box, its scene files and its published energies
+(Tables 1-5) that runs are compared with.
 
 Keys: scene branch ('oblate' discocyte, 'prolate' dumbbell), grid (node
 count of a uniform grid, or the Table B.6 identifier of an adapted one),
 eps. The 296,344-node uniform grid is the paper's finest.
 """
+PAPER_BOX = (1.5, 2.0)  # (Rb, Zb) of every scene of the paper
+SCENE_FILES = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 FINEST = 296344
 SHARP = {'oblate': 9.12657, 'prolate': 8.71756}
 

@@ -84,8 +84,8 @@ class Checkpoint:
         return Checkpoint(nodes, phi, {**self.attrs, "symmetric": 0}, self.datasets)
 
 
-def write(path, nodes, phi, attrs, comm=None, datasets=None):
-    """Write a checkpoint atomically.
+def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):
+    """Write a checkpoint atomically, and with `triangles` its XDMF description.
 
     Collective.  Only the arguments given on rank 0 are used (the other ranks
     may pass None); rank 0 writes and every rank returns or raises the same
@@ -107,6 +107,9 @@ def write(path, nodes, phi, attrs, comm=None, datasets=None):
         Communicator; None for a serial call.
     datasets : dict, optional
         Extra datasets (e.g. ``nu``, ``dirichlet``) by name.
+    triangles : array_like of int, shape (M, 3), optional
+        Node indices of the triangles, stored as dataset ``triangles`` and
+        described, with the nodes and phi, by ``<path stem>.xdmf``.
 
     Raises
     ------
@@ -117,8 +120,13 @@ def write(path, nodes, phi, attrs, comm=None, datasets=None):
 
     def action():
         n_procs = 1 if comm is None else comm.Get_size()
-        arrays, stored_attrs = _prepare(nodes, phi, attrs, datasets, n_procs)
+        extra = dict(datasets or {})
+        if triangles is not None:
+            extra["triangles"] = _check_triangles(triangles, len(phi))
+        arrays, stored_attrs = _prepare(nodes, phi, attrs, extra, n_procs)
         _replace_atomically(path, lambda tmp: _fill(tmp, arrays, stored_attrs))
+        if triangles is not None:
+            _write_sidecar(path, len(phi), len(extra["triangles"]))
 
     _on_root(comm, action, f"cannot write checkpoint {path}")
 
@@ -185,25 +193,32 @@ def write_xdmf(h5path, triangles=None):
     try:
         if triangles is None:
             triangles = scipy.spatial.Delaunay(ckpt.nodes).simplices
-        triangles = np.asarray(triangles)
-        if (triangles.ndim != 2 or triangles.shape[1] != 3
-                or not np.issubdtype(triangles.dtype, np.integer)):
-            raise CheckpointError(f"triangles must be an (M, 3) integer "
-                                  f"array, got {triangles.dtype} "
-                                  f"{triangles.shape}")
-        if triangles.size and (triangles.min() < 0
-                               or triangles.max() >= n_nodes):
-            raise CheckpointError(f"triangle indices outside [0, {n_nodes})")
-        triangles = triangles.astype(np.int64)
+        triangles = _check_triangles(triangles, n_nodes)
         _replace_atomically(h5path,
                             lambda tmp: _add_triangles(h5path, tmp, triangles))
-        xdmf = os.path.splitext(h5path)[0] + ".xdmf"
-        text = _xdmf_text(os.path.basename(h5path), n_nodes, len(triangles))
-        _replace_atomically(xdmf, lambda tmp: _write_text(tmp, text))
+        return _write_sidecar(h5path, n_nodes, len(triangles))
     except (CheckpointError, OSError, ValueError,
             scipy.spatial.QhullError) as exc:
         raise CheckpointError(f"cannot write XDMF for {h5path}: "
                               f"{_one_line(exc)}") from exc
+
+
+def _check_triangles(triangles, n_nodes):
+    triangles = np.asarray(triangles)
+    if (triangles.ndim != 2 or triangles.shape[1] != 3
+            or not np.issubdtype(triangles.dtype, np.integer)):
+        raise CheckpointError(f"triangles must be an (M, 3) integer array, got "
+                              f"{triangles.dtype} {triangles.shape}")
+    if triangles.size and (triangles.min() < 0 or triangles.max() >= n_nodes):
+        raise CheckpointError(f"triangle indices outside [0, {n_nodes})")
+    return triangles.astype(np.int64)
+
+
+def _write_sidecar(h5path, n_nodes, n_triangles):
+    """The XDMF file beside `h5path`, which holds the ``triangles`` dataset."""
+    xdmf = os.path.splitext(h5path)[0] + ".xdmf"
+    text = _xdmf_text(os.path.basename(h5path), n_nodes, n_triangles)
+    _replace_atomically(xdmf, lambda tmp: _write_text(tmp, text))
     return xdmf
 
 

@@ -6,7 +6,7 @@ A `-pf_` name that `Params` does not know is refused before any work; any
 other option still unused when a run has finished is refused at the end
 (`check_unused`), unless `-options_left` asks for PETSc's own report.
 """
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 import ctypes
 import difflib
 import math
@@ -14,6 +14,8 @@ import os
 import tempfile
 
 import numpy as np
+
+from pfmembrane.scenes import PAPER_BOX
 
 BRANCHES = ('oblate', 'prolate')
 STAGE1 = ('newton', 'tao', 'none')
@@ -26,13 +28,27 @@ class UsageError(Exception):
 
 
 @dataclass
-class Params:
+class Settings:
+    """The solver's own options: what a solve may change without a new scene
+    or grid (on the command line `-pf_NAME`, in the API its options prefix)."""
+    stage1: str = 'newton'
+    mu: float = 0.0
+    stage1_rtol: float = 1e-3
+    stage1_max_it: int = 30
+    stage2_rtol: float = 1e-10
+    monitor: bool = False
+    force: bool = False
+
+
+@dataclass
+class Params(Settings):
+    """Every application option: the scene, its grid, the run and the solver."""
     eps: float = 0.04
     k: float = 1.0
     c0: float = 0.0
     radius: float = 0.4
     reduced_volume: float = 0.8
-    box: tuple = (1.5, 2.0)
+    box: tuple = PAPER_BOX
     branch: str = 'oblate'
     nodes: int = 6124
     symmetric: bool = False
@@ -43,13 +59,6 @@ class Params:
     cutoff: float = 1e-6
     quad_degree: int = 4
     spacing_smoothing: int = 3
-    stage1: str = 'newton'
-    mu: float = 0.0
-    stage1_rtol: float = 1e-3
-    stage1_max_it: int = 30
-    stage2_rtol: float = 1e-10
-    monitor: bool = False
-    force: bool = False
 
     @property
     def area(self):
@@ -60,13 +69,8 @@ class Params:
         return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
 
     @property
-    def zc(self):
-        return 0.5 * self.box[1]
-
-    @property
-    def plane(self):
-        """z of the mirror plane of a half-box solve, None on the full box."""
-        return self.zc if self.symmetric else None
+    def settings(self):
+        return Settings(**{f.name: getattr(self, f.name) for f in fields(Settings)})
 
 
 HELP = {
@@ -104,10 +108,11 @@ def help_text():
     """The application options with their defaults."""
     lines = ['pfmembrane: equilibrium vesicle shapes, phase field on local max-ent approximants',
              'Application options (PETSc solver options go under -stage1_ and -stage2_):']
-    for f in fields(Params):
+    solver = {f.name for f in fields(Settings)}
+    for f in sorted(fields(Params), key=lambda f: f.name in solver):  # the scene first
         default = f.default
         if f.name == 'box':
-            default = '1.5,2'
+            default = ','.join(format(b, 'g') for b in PAPER_BOX)
         lines.append(f"  -pf_{f.name:<16s} {str(default) or 'none':<10s} {HELP[f.name]}")
     lines += ['Options nothing used are errors (-options_left: warnings).',
               'Exit status: 0 converged; 1 not converged; 2 invalid input; 3 PETSc error;',
@@ -116,8 +121,8 @@ def help_text():
     return '\n'.join(lines)
 
 
-def _get(opts, name, kind, default):
-    key = 'pf_' + name
+def _get(opts, name, kind, default, prefix=''):
+    key = prefix + 'pf_' + name
     if not opts.hasName(key):
         return default
     text = opts.getString(key, '') or ''
@@ -149,13 +154,14 @@ def _get(opts, name, kind, default):
         raise UsageError(f"-{key}: cannot read {text!r} as {KINDS[kind]}") from None
 
 
-def check_names(opts):
-    """Refuse a `-pf_` option that `Params` does not know: a typo must fail
-    before the expensive work, not at the end of the run."""
-    known = ['pf_' + f.name for f in fields(Params)]
+def check_names(opts, prefix='', record=Params):
+    """Refuse a `-PREFIXpf_` option that `record` does not know: a typo must
+    fail before the expensive work, not at the end of the run."""
+    start = (prefix + 'pf_').lower()
+    known = [start + f.name for f in fields(record)]
     for name in sorted(opts.getAll()):
         # PETSc matches option names without regard to case.
-        if name.lower().startswith('pf_') and name.lower() not in known:
+        if name.lower().startswith(start) and name.lower() not in known:
             guess = difflib.get_close_matches(name.lower(), known, n=1)
             hint = f" (did you mean -{guess[0]}?)" if guess else ''
             raise UsageError(f"unknown option {'-' + name!r}{hint}; -help lists the options")
@@ -170,57 +176,81 @@ def read(opts):
     return p
 
 
-def _require(ok, name, what, value):
+def read_settings(opts, prefix=''):
+    """The solver `Settings` under an options prefix, validated. Without a
+    prefix the names are the application's (`read` checks them)."""
+    if prefix:
+        check_names(opts, prefix, Settings)
+    s = Settings(**{f.name: _get(opts, f.name, type(f.default), f.default, prefix)
+                    for f in fields(Settings)})
+    validate_settings(s, prefix)
+    return s
+
+
+def _require(ok, name, what, value, prefix=''):
     if not ok:
-        raise UsageError(f"-pf_{name} must be {what} (got {value!r})")
+        raise UsageError(f"-{prefix}pf_{name} must be {what} (got {value!r})")
+
+
+def validate_settings(s, prefix=''):
+    """Raise UsageError with one line naming the option for a bad solver setting."""
+    for f in fields(Settings):
+        if f.type is float:
+            _require(math.isfinite(getattr(s, f.name)), f.name, 'a finite number',
+                     getattr(s, f.name), prefix)
+    if s.stage1 not in STAGE1:
+        raise UsageError(f"-{prefix}pf_stage1: unknown solver {s.stage1!r} "
+                         f"(choose {', '.join(STAGE1)})")
+    for name in ('stage1_rtol', 'stage2_rtol'):
+        _require(0.0 < getattr(s, name) < 1.0, name, 'in (0, 1)', getattr(s, name), prefix)
+    _require(s.mu >= 0, 'mu', '>= 0', s.mu, prefix)
+    _require(s.stage1_max_it >= 1, 'stage1_max_it', '>= 1', s.stage1_max_it, prefix)
+
+
+def check_scene(s):
+    """Raise UsageError for an impossible scene (of `Params` or `api.Scene`)."""
+    for name in ('k', 'c0', 'radius', 'reduced_volume'):
+        _require(math.isfinite(getattr(s, name)), name, 'a finite number', getattr(s, name))
+    if s.box != 'auto':
+        _require(len(s.box) == 2 and all(math.isfinite(b) and b > 0 for b in s.box),
+                 'box', 'two positive numbers Rb,Zb', s.box)
+    for name in ('k', 'radius'):
+        _require(getattr(s, name) > 0, name, '> 0', getattr(s, name))
+    if not 0.0 < s.reduced_volume <= 1.0:
+        raise UsageError(f"-pf_reduced_volume must lie in (0, 1] (got {s.reduced_volume!r}): "
+                         "no closed surface encloses more than the sphere of the same area")
+    if s.branch not in BRANCHES:
+        raise UsageError(f"-pf_branch: unknown shape {s.branch!r} (choose {', '.join(BRANCHES)})")
 
 
 def validate(p):
-    """Raise UsageError with one line naming the option for any inconsistent setting."""
+    """Raise UsageError with one line naming the option for any inconsistent
+    setting. A fresh start's box `auto` is left for the caller to size
+    (`analysis.sizing.auto_box`) and check (`check_fits`)."""
     for f in fields(Params):
         value = getattr(p, f.name)
         if f.type is float:
             _require(math.isfinite(value), f.name, 'a finite number', value)
-    if p.box != 'auto':
-        _require(len(p.box) == 2 and all(math.isfinite(b) and b > 0 for b in p.box),
-                 'box', 'two positive numbers Rb,Zb', p.box)
-    for name in ('eps', 'k', 'radius', 'gamma'):
+    check_scene(p)
+    for name in ('eps', 'gamma'):
         _require(getattr(p, name) > 0, name, '> 0', getattr(p, name))
-    if not 0.0 < p.reduced_volume <= 1.0:
-        raise UsageError(f"-pf_reduced_volume must lie in (0, 1] (got {p.reduced_volume!r}): "
-                         "no closed surface encloses more than the sphere of the same area")
-    if p.branch not in BRANCHES:
-        raise UsageError(f"-pf_branch: unknown shape {p.branch!r} (choose {', '.join(BRANCHES)})")
-    if p.stage1 not in STAGE1:
-        raise UsageError(f"-pf_stage1: unknown solver {p.stage1!r} (choose {', '.join(STAGE1)})")
+    validate_settings(p)
     _require(p.quad_degree in QUADRATURE, 'quad_degree', f"one of {QUADRATURE}", p.quad_degree)
-    for name in ('cutoff', 'stage1_rtol', 'stage2_rtol'):
-        _require(0.0 < getattr(p, name) < 1.0, name, 'in (0, 1)', getattr(p, name))
-    for name in ('adapt', 'mu'):
-        _require(getattr(p, name) >= 0, name, '>= 0', getattr(p, name))
-    _require(p.stage1_max_it >= 1, 'stage1_max_it', '>= 1', p.stage1_max_it)
+    _require(0.0 < p.cutoff < 1.0, 'cutoff', 'in (0, 1)', p.cutoff)
+    _require(p.adapt >= 0, 'adapt', '>= 0', p.adapt)
     if p.adapt and not p.restart:
         raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
-    if p.restart:
-        return  # the box is the checkpoint's, the start its phi
-    if p.box == 'auto':
-        p.box = auto_box(p)
+    if p.restart or p.box == 'auto':
+        return  # a restart's box is the checkpoint's, its start its phi
     check_fits(p)
 
 
-def auto_box(p):
-    """The box of `-pf_box auto` for a fresh start (`sizing.auto_box`)."""
-    from pfmembrane.analysis.sizing import auto_box as sized
-    check_fits(replace(p, box=(math.inf, math.inf)))  # refuses a scene without a spheroid
-    return sized(p.branch, p.reduced_volume, p.eps, p.radius, p.c0, p.k)
-
-
-def check_fits(p):
+def check_fits(p, eps=None):
     """Semi-axes (a, c) of the initial spheroid of the branch, which with a
-    3 eps margin must fit the box."""
+    3 eps margin must fit the box (`p` a `Params`, or a scene and its `eps`)."""
     from pfmembrane.kernels.initial import spheroid_axes
     scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
              f"-pf_branch {p.branch}")
@@ -234,7 +264,7 @@ def check_fits(p):
         raise UsageError(f"no spheroid has the area and volume of {scene}: "
                          "the initial guess cannot be built")
     Rb, Zb = p.box
-    margin = 3.0 * p.eps
+    margin = 3.0 * (p.eps if eps is None else eps)
     if a + margin > Rb or c + margin > 0.5 * Zb:
         raise UsageError(
             f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (semi-axes "
@@ -302,7 +332,7 @@ def check_unused(opts, comm, given):
     """
     if opts.hasName('help') or opts.hasName('options_left'):
         return
-    mine = set(_options_left()) & {name.lower() for name in given}
+    mine = set(options_left()) & {name.lower() for name in given}
     unused = sorted(set.intersection(*map(set, comm.allgather(sorted(mine)))))
     if unused:
         raise UsageError(
@@ -311,7 +341,7 @@ def check_unused(opts, comm, given):
             "-options_left reports them without failing")
 
 
-def _options_left():
+def options_left():
     """Names (lower case, without the dash) of the options nothing looked up.
 
     petsc4py has no wrapper of PetscOptionsLeftGet; it is reached through the
@@ -331,7 +361,3 @@ def _options_left():
     left = [names[i].decode().lower() for i in range(n.value)]
     lib.PetscOptionsLeftRestore(*refs)
     return left
-
-
-def stage1_penalty(p):
-    return p.mu if p.mu > 0 else (1e-5 if p.stage1 == 'newton' else 1e-4)

@@ -62,11 +62,18 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None):
         moved = cvt.lloyd(nodes - shift, (box[0], box[1] - z[0]), density)
     new, iterations, movement = comm.bcast(moved, root=0)
     new = new + shift
-    basis = folded_basis(new, nodes, beta, cutoff, derivatives=0, plane=plane)
-    new_phi = maxent.interpolate(basis, phi)
-    new_phi[dirichlet_mask(new, box)] = -1.0
+    new_phi = transfer(nodes, phi, beta, cutoff, new, box, plane)
     info = dict(iterations=iterations, movement=movement, raster=grad.shape,
                 time_raster=t_raster, time=time.perf_counter() - t0,
                 h_min=(spacing_peak(nodal_spacing(nodes, plane=plane)),
                        spacing_peak(nodal_spacing(new, plane=plane))))
     return new, new_phi, info
+
+
+def transfer(nodes, phi, beta, cutoff, new, box, plane=None):
+    """phi_h of the nodal values `phi` (locality `beta`) at the nodes `new`,
+    whose Dirichlet nodes get -1 exactly. Not collective."""
+    basis = folded_basis(new, nodes, beta, cutoff, derivatives=0, plane=plane)
+    values = maxent.interpolate(basis, phi)
+    values[dirichlet_mask(new, box)] = -1.0
+    return values

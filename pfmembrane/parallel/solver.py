@@ -11,7 +11,6 @@ import numpy as np
 from petsc4py import PETSc
 
 from pfmembrane.parallel.faults import poll
-from pfmembrane.io.options import stage1_penalty
 
 
 SHIFT_GROWTH = 8.0
@@ -26,26 +25,34 @@ class SolveError(Exception):
     """A stage that did not converge; carries the reason and a remedy."""
 
 
-def _set_default(prefix, name, value):
-    opts = PETSc.Options()
-    if not opts.hasName(prefix + name):
-        opts.setValue(prefix + name, value)
+def stage1_penalty(settings):
+    """The initial penalty mu of the augmented Lagrangian."""
+    if settings.mu > 0:
+        return settings.mu
+    return 1e-5 if settings.stage1 == 'newton' else 1e-4
 
 
 class Solver:
     """Drives both stages on one Problem. Collective.
 
-    `x` is the distributed Vec of free nodal values, updated in place.
+    `settings` holds the application's solver options (`io.options.Settings`);
+    the PETSc objects read theirs under `prefix` + 'stage1_' and 'stage2_'.
+    Defaults the solver gives PETSc (MUMPS controls) are set under that prefix
+    where the database has none, and listed in `defaults` for the caller to
+    remove. `x` is the distributed Vec of free nodal values, updated in place.
     """
 
-    def __init__(self, problem, params, print_fn=PETSc.Sys.Print):
-        self.P, self.p = problem, params
+    def __init__(self, problem, settings, prefix='', print_fn=PETSc.Sys.Print):
+        self.P, self.p = problem, settings
+        self.prefix = prefix
+        self.defaults = []
         self.print = print_fn
         self.gE, self.gA = problem.create_vec(), problem.create_vec()
         self.ncon = problem.ncon
         self.C = [self.gA, problem.grad_V, problem.grad_M][:self.ncon]
-        self.scale = np.array([params.area, params.volume,
-                               params.volume * params.radius])[:self.ncon]
+        area, volume = problem.targets[:2]
+        radius = np.sqrt(area / (4.0 * np.pi))
+        self.scale = np.array([area, volume, volume * radius])[:self.ncon]
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0
@@ -204,7 +211,7 @@ class Solver:
         tao = getattr(self, '_tao_obj', None)
         if tao is None:
             tao = self._tao_obj = PETSc.TAO().create(P.comm)
-            tao.setOptionsPrefix('stage1_')
+            tao.setOptionsPrefix(self.prefix + 'stage1_')
             tao.setType(PETSc.TAO.Type.BQNLS)
             tao.setMaximumIterations(500)
             tao.setFromOptions()
@@ -269,7 +276,7 @@ class Solver:
             P.assemble_bordered(xx, nu[0], self.C, 0.0)
 
         snes = PETSc.SNES().create(P.comm)
-        snes.setOptionsPrefix('stage2_')
+        snes.setOptionsPrefix(self.prefix + 'stage2_')
         snes.setFunction(residual, F)
         snes.setJacobian(jacobian, K, K)
         snes.setTolerances(rtol=self.p.stage2_rtol, atol=1e-12, max_it=50)
@@ -277,7 +284,7 @@ class Solver:
         # |F| is a poor merit function. On the 24,597-node discocyte at eps 0.007
         # a full step takes |F| from 4.4e-6 to 9.5e-5 and the next to 3e-11, while
         # backtracking (bt) crawled at 2-10% steps for 50 iterations.
-        _set_default('stage2_', 'snes_linesearch_type', 'basic')
+        self._set_default('stage2_snes_linesearch_type', 'basic')
         self._configure_direct(snes.getKSP(), 'stage2_', cholesky=False)
         snes.setFromOptions()
         snes.setConvergenceHistory()
@@ -300,17 +307,30 @@ class Solver:
                              "try a tighter stage 1 (-pf_stage1_rtol) or a finer grid")
         return vals, res
 
+    def destroy(self):
+        """Free the PETSc objects kept between iterations."""
+        for name in ('_ksp1', '_tao_obj'):
+            obj = self.__dict__.pop(name, None)
+            if obj is not None:
+                obj.destroy()
+
     # -- linear solvers --------------------------------------------------------
-    def _configure_direct(self, ksp, prefix, cholesky):
+    def _set_default(self, name, value):
+        opts, key = PETSc.Options(), self.prefix + name
+        if not opts.hasName(key):
+            opts.setValue(key, value)
+            self.defaults.append(key)
+
+    def _configure_direct(self, ksp, stage, cholesky):
         """Defaults: a MUMPS factorization with AMD-type ordering; options override."""
-        ksp.setOptionsPrefix(prefix)
+        ksp.setOptionsPrefix(self.prefix + stage)
         ksp.setType(PETSc.KSP.Type.PREONLY)
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.CHOLESKY if cholesky else PETSc.PC.Type.LU)
         pc.setFactorSolverType('mumps')
-        _set_default(prefix, 'mat_mumps_icntl_7', '6')
-        _set_default(prefix, 'mat_mumps_icntl_13', '1')  # inertia in parallel
-        _set_default(prefix, 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
+        self._set_default(stage + 'mat_mumps_icntl_7', '6')
+        self._set_default(stage + 'mat_mumps_icntl_13', '1')  # inertia in parallel
+        self._set_default(stage + 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
 
     def _stage1_ksp(self):
         """One LDL^T (MUMPS Cholesky) solver reused by every stage-1 Newton step."""

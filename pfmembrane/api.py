@@ -1,0 +1,516 @@
+"""The public API: a scene, a grid built once, solves on it and their results.
+
+Grids, solves and adaptation are collective on the grid's communicator
+(PETSc's COMM_WORLD unless given). PETSc starts on first use: with the
+script's command-line arguments, so `-log_view` or `-info` reach it, except
+in an interactive session or a notebook, whose arguments are not PETSc's.
+Reading a result, and `Scene`, need no PETSc at all.
+"""
+import itertools
+import math
+import resource
+import sys
+import time
+import warnings
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from pfmembrane.io import checkpoint, options as appoptions
+from pfmembrane.kernels import adapt as adaptivity, nodes as nodesets
+from pfmembrane.kernels.basis import locality
+from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
+from pfmembrane.kernels.nodes import spacing_peak
+from pfmembrane.scenes import PAPER_BOX
+
+__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read']
+
+# eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
+# distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
+# refused 1.18-1.25).
+RESOLUTION = 1.5
+# Log events whose times a result reports: functionals and their derivatives
+# into Vec/Mat, and the linear solves (factorizations included).
+ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
+LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
+MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
+
+
+def petsc():
+    """petsc4py's PETSc, started on first use."""
+    if 'petsc4py.PETSc' not in sys.modules:
+        import petsc4py
+        interactive = hasattr(sys, 'ps1') or 'ipykernel' in sys.modules
+        petsc4py.init(sys.argv[:1] if interactive else sys.argv)
+    from petsc4py import PETSc
+    PETSc.Log.begin()  # event times feed each result's time split
+    return PETSc
+
+
+def _comm(comm):
+    """A PETSc communicator from None (COMM_WORLD), an mpi4py or a PETSc one."""
+    PETSc = petsc()
+    if comm is None:
+        return PETSc.COMM_WORLD
+    return comm if isinstance(comm, PETSc.Comm) else PETSc.Comm(comm)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The vesicle: A0 = 4 pi R^2, V0 = v 4/3 pi R^3, bending rigidity k,
+    spontaneous curvature c0, the (r, z) box (Rb, Zb) or 'auto', the family
+    of the initial guess, and whether it is solved on the half box z >= Zb/2."""
+    reduced_volume: float = 0.8
+    c0: float = 0.0
+    radius: float = 0.4
+    k: float = 1.0
+    box: tuple = PAPER_BOX
+    branch: str = 'oblate'
+    symmetric: bool = False
+
+    def __post_init__(self):
+        if self.box != 'auto':
+            object.__setattr__(self, 'box', tuple(float(b) for b in self.box))
+        appoptions.check_scene(self)
+
+    @property
+    def area(self):
+        return 4.0 * math.pi * self.radius ** 2
+
+    @property
+    def volume(self):
+        return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
+
+    @property
+    def zc(self):
+        return 0.5 * self.box[1]
+
+    @property
+    def plane(self):
+        """z of the mirror plane of a half-box solve, None on the full box."""
+        return self.zc if self.symmetric else None
+
+    def sized(self, eps):
+        """This scene in the box of `-pf_box auto` for `eps` (`analysis.sizing`),
+        or unchanged if it has a box."""
+        if self.box != 'auto':
+            return self
+        from pfmembrane.analysis.sizing import auto_box
+        unbounded = SimpleNamespace(**{f: getattr(self, f) for f in
+                                       ('radius', 'reduced_volume', 'branch', 'area', 'volume')},
+                                    box=(math.inf, math.inf))
+        appoptions.check_fits(unbounded, eps)  # refuses a scene without a spheroid
+        return replace(self, box=auto_box(self.branch, self.reduced_volume, eps, self.radius,
+                                          self.c0, self.k))
+
+    @classmethod
+    def of(cls, attrs):
+        """The scene of checkpoint attributes."""
+        return cls(reduced_volume=float(attrs['reduced_volume']), c0=float(attrs['c0']),
+                   radius=float(attrs['radius']), k=float(attrs['k']),
+                   box=tuple(float(b) for b in attrs['box']), branch=str(attrs['branch']),
+                   symmetric=bool(attrs.get('symmetric', 0)))
+
+
+class Grid:
+    """Nodes of a scene's box with their max-ent basis, partition, operators
+    and Hessian products, built once and reused by every solve on it.
+
+    Collective on `comm`. `gamma` is the max-ent locality (beta_a = gamma /
+    h_a^2), `cutoff` the support cut-off, `quad_degree` the Gauss rule on the
+    Delaunay triangles, `spacing_smoothing` the passes over h_a behind beta_a.
+    """
+
+    def __init__(self, scene, nodes, gamma=0.8, cutoff=1e-6, quad_degree=4,
+                 spacing_smoothing=3, comm=None):
+        from pfmembrane.parallel.discretization import Grid as Discretization
+        PETSc = petsc()
+        if scene.box == 'auto':
+            raise ValueError("the scene's box is 'auto': size it first (Scene.sized(eps))")
+        self.comm = _comm(comm)
+        self.box, self.symmetric, self.plane = scene.box, scene.symmetric, scene.plane
+        self.params = dict(gamma=gamma, cutoff=cutoff, quad_degree=quad_degree,
+                           spacing_smoothing=spacing_smoothing)
+        self.adapt_info, self.adapt_f, self._transferred = None, 0.0, None
+        t0 = time.perf_counter()
+        stage = PETSc.Log.Stage('pfBasis')
+        stage.push()
+        try:
+            self.discrete = Discretization(self.comm, np.asarray(nodes, dtype=float), scene.box,
+                                           gamma, cutoff, quad_degree, spacing_smoothing,
+                                           scene.plane)
+            self.discrete.gram  # stage 2 always needs the Hessian
+        finally:
+            stage.pop()
+        self.setup_time = time.perf_counter() - t0
+        self._setup_pending = True  # the first solve reports the set-up time
+        self.eps_min = RESOLUTION * spacing_peak(self.discrete.h)
+
+    @classmethod
+    def uniform(cls, scene, nodes=6124, **kwargs):
+        """A near-hexagonal grid of about `nodes` nodes of the full box (its
+        half with the scene's mirror plane), nodes on every edge."""
+        return cls(scene, nodesets.uniform(scene.box, nodes, half=scene.symmetric), **kwargs)
+
+    @classmethod
+    def of(cls, result, comm=None, **kwargs):
+        """The grid of a result's nodes, with its basis parameters unless given."""
+        a = result.attrs
+        params = dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
+                      quad_degree=int(a.get('quad_degree', 4)),
+                      spacing_smoothing=int(a.get('spacing_smoothing', 0)))
+        return cls(result.scene, result.nodes, **{**params, **kwargs}, comm=comm)
+
+    @property
+    def nodes(self):
+        return self.discrete.nodes
+
+    @property
+    def n_nodes(self):
+        return len(self.discrete.nodes)
+
+    def fits(self, scene):
+        """Whether `scene` can be solved on this grid: same box and symmetry."""
+        return (scene.box != 'auto' and np.allclose(scene.box, self.box, rtol=0, atol=1e-12)
+                and scene.symmetric == self.symmetric)
+
+    def __repr__(self):
+        d = self.discrete
+        return (f"Grid({self.n_nodes} nodes, {d.layout.nglobal} free, {d.nquad} quadrature "
+                f"points, gamma {self.params['gamma']:g}, eps_min {self.eps_min:.4g})")
+
+
+@dataclass
+class Result:
+    """A solved (or stopped) state: nodes and nodal phi on every rank, and the
+    checkpoint attributes (`io.checkpoint`): energy, area, volume, moment, the
+    multipliers, eps, the scene, converged, times. `grid` is the grid it was
+    solved on (None for a result read from a file)."""
+    nodes: np.ndarray
+    phi: np.ndarray
+    attrs: dict
+    grid: object = None
+    message: str = ''
+    status: int = 0
+    path: str = ''
+    datasets: dict = field(default_factory=dict)
+
+    @property
+    def energy(self):
+        return float(self.attrs['energy'])
+
+    @property
+    def eps(self):
+        return float(self.attrs['eps'])
+
+    @property
+    def converged(self):
+        return bool(self.attrs['converged'])
+
+    @property
+    def nu(self):
+        """Multipliers (nu_A, nu_V[, nu_M]): L = E - nu . (c - c0)."""
+        n = 2 if self.attrs.get('symmetric', 0) else 3
+        return np.array([float(self.attrs.get(k, 0.0)) for k in MULTIPLIERS[:n]])
+
+    @property
+    def scene(self):
+        return Scene.of(self.attrs)
+
+    def checkpoint(self):
+        return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
+
+    def save(self, path):
+        """Write the checkpoint and its `.xdmf` beside it, atomically.
+
+        Collective on the grid's communicator (serial for a result read back).
+        """
+        comm = self.grid.comm.tompi4py() if self.grid is not None else None
+        triangles = (self.grid.discrete.triangles if self.grid is not None
+                     else self.datasets.get('triangles'))
+        checkpoint.write(path, self.nodes, self.phi, self.attrs, comm=comm,
+                         datasets={k: v for k, v in self.datasets.items() if k != 'triangles'},
+                         triangles=triangles)
+        self.path = str(path)
+        return self
+
+
+def read(path, comm=None, expect_box=None):
+    """The result stored in a checkpoint; collective when `comm` (mpi4py or
+    PETSc) is given. `expect_box`: (Rb, Zb) it must have."""
+    if comm is not None and not hasattr(comm, 'Get_rank'):
+        comm = comm.tompi4py()
+    ck = checkpoint.read(path, comm, expect_box=expect_box)
+    return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)
+
+
+def adapt(result, f, comm=None, **grid_params):
+    """A grid of as many nodes as `result`'s, relocated by CVT for the density
+    1 + f |grad phi_h| (paper Section 4.2), with its basis parameters unless
+    given. A solve on it started from `result` uses phi_h transferred to the
+    new nodes. Collective."""
+    PETSc = petsc()
+    comm = _comm(comm if comm is not None else
+                 (result.grid.comm if result.grid is not None else None))
+    scene, a = result.scene, result.attrs
+    stage = PETSc.Log.Stage('pfAdapt')
+    stage.push()
+    try:
+        beta = locality(result.nodes, float(a['gamma']), int(a.get('spacing_smoothing', 0)),
+                        scene.plane)
+        xy, phi, info = adaptivity.relocate(comm.tompi4py(), result.nodes, result.phi,
+                                            scene.box, beta, float(a.get('cutoff', 1e-6)), f,
+                                            scene.plane)
+    finally:
+        stage.pop()
+    PETSc.Sys.Print(f"adapt: CVT f={f:g} of {result.path or 'the result'}: {info['iterations']} "
+                    f"Lloyd steps (movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g}"
+                    f" -> {info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
+                    f"{info['time']:.2f} s", comm=comm)
+    params = dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
+                  quad_degree=int(a.get('quad_degree', 4)),
+                  spacing_smoothing=int(a.get('spacing_smoothing', 0)))
+    grid = Grid(scene, xy, **{**params, **grid_params}, comm=comm)
+    grid.adapt_info, grid.adapt_f, grid._transferred = info, float(f), (result, phi)
+    return grid
+
+
+_solve_count = itertools.count(1)
+
+
+def _text(value):
+    """An options-database value of a Python one."""
+    if value is None or value is True:
+        return 'true' if value else ''
+    if value is False:
+        return 'false'
+    if isinstance(value, (tuple, list)):
+        return ','.join(format(v, 'g') if isinstance(v, float) else str(v) for v in value)
+    return str(value)
+
+
+@contextmanager
+def _options(given, prefix):
+    """The solve's options under its prefix in PETSc's database, removed after
+    (a value the database held before is restored). Yields the prefix and the
+    keys inserted."""
+    PETSc = petsc()
+    db = PETSc.Options()
+    saved = {}
+    try:
+        for key, value in (given or {}).items():
+            full = prefix + key.lstrip('-')
+            if full not in saved:
+                saved[full] = db.getString(full) if db.hasName(full) else None
+            db.setValue(full, _text(value))
+        yield saved
+    finally:
+        for full, old in saved.items():
+            if old is None:
+                db.delValue(full)
+            else:
+                db.setValue(full, old)
+
+
+def _start_phi(scene, grid, eps, start):
+    """Nodal phi of the start at every node (a spheroid of the scene's branch,
+    or `start`'s phi_h on this grid, its tanh profile rescaled to `eps`), the
+    start's multipliers (None for a spheroid) and whether it was solved."""
+    if start is None:
+        a, c = appoptions.check_fits(scene, eps)
+        return spheroid_phi(grid.nodes, a, c, scene.zc, eps), None, False
+    if start.attrs.get('symmetric', 0) != grid.symmetric:
+        raise appoptions.UsageError(
+            f"the start {start.path or ''} holds a "
+            f"{'half' if start.attrs.get('symmetric', 0) else 'full'}-box solution: "
+            f"{'add' if start.attrs.get('symmetric', 0) else 'remove'} -pf_symmetric "
+            "to continue it")
+    if grid._transferred is not None and grid._transferred[0] is start:
+        phi = grid._transferred[1]
+    elif len(start.nodes) == grid.n_nodes and np.array_equal(start.nodes, grid.nodes):
+        phi = start.phi
+    else:
+        a = start.attrs
+        beta = locality(start.nodes, float(a['gamma']), int(a.get('spacing_smoothing', 0)),
+                        grid.plane)
+        phi = adaptivity.transfer(start.nodes, start.phi, beta, float(a.get('cutoff', 1e-6)),
+                                  grid.nodes, grid.box, grid.plane)
+    return rescaled_phi(phi, start.eps, eps), start.nu, start.converged
+
+
+def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
+    """The equilibrium shape of `scene` on `grid` at width `eps`. Collective.
+
+    Starts from the scene's spheroid, or from `start` (a `Result`: on this
+    grid, read from a file, or the parent of an adapted grid). `options` maps
+    command-line names without the dash to values, PETSc's (`stage2_snes_monitor`,
+    `stage1_tao_type`) and the solver's own (`pf_stage1`, `pf_mu`,
+    `pf_stage1_rtol`, `pf_stage1_max_it`, `pf_stage2_rtol`, `pf_monitor`,
+    `pf_force`); they live under the solve's options `prefix` (by default one
+    of its own, so `-PREFIX...` on the command line reaches only this solve)
+    and leave the database as they found it. `checks` compares the converged
+    field with the sharp-interface shape (`analysis.limit.compare`).
+
+    Returns a `Result`; one that did not converge has `converged` False and
+    the reason in `message`. Raises `io.options.UsageError` for bad input.
+    """
+    from pfmembrane.parallel.assembly import Problem
+    from pfmembrane.parallel.faults import Interrupted
+    from pfmembrane.parallel.solver import Solver, SolveError
+    PETSc = petsc()
+    if not grid.fits(scene):
+        raise appoptions.UsageError(
+            f"the scene (box {scene.box}, {'half' if scene.symmetric else 'full'} box) "
+            f"does not fit the grid (box {grid.box}, {'half' if grid.symmetric else 'full'} box)")
+    if not (math.isfinite(eps) and eps > 0):
+        raise appoptions.UsageError(f"-pf_eps must be > 0 (got {eps!r})")
+    prefix = f"pf{next(_solve_count)}_" if prefix is None else prefix
+    comm, lay = grid.comm, grid.discrete.layout
+    t0 = time.perf_counter()
+    with _options(options, prefix) as inserted:
+        settings = appoptions.read_settings(PETSc.Options(), prefix)
+        under = eps < grid.eps_min
+        if under and not settings.force:
+            raise appoptions.UsageError(
+                f"eps {eps:g} is below what this grid resolves (eps_min = {grid.eps_min:.4g}); "
+                "use more nodes, an adapted grid, or -pf_force to run anyway")
+        phi0, nu0, solved = _start_phi(scene, grid, eps, start)
+        problem = Problem(grid.discrete, eps, scene.k, scene.c0, (scene.area, scene.volume),
+                          scene.zc)
+        x = problem.create_vec()
+        x.setArray(phi0[lay.order[lay.start:lay.start + lay.nowned]])
+        solver = Solver(problem, settings, prefix)
+        try:
+            state = _run_stages(problem, solver, x, settings, nu0, solved,
+                                (SolveError, Interrupted))
+            values = lay.gather(x)
+            max_phi = problem.max_abs_phi(x)
+        finally:
+            solver.destroy()
+            for key in solver.defaults:
+                PETSc.Options().delValue(key)
+        left = _unused(inserted, comm)
+    if left:
+        warnings.warn(f"solve options never used: {', '.join('-' + k for k in left)}",
+                      stacklevel=2)
+    mpi = comm.tompi4py()
+    phi = mpi.bcast(None if values is None else _nodal(grid, values), root=0)
+    converged, message, status, vals, stages = state
+    setup = grid.setup_time if grid._setup_pending else 0.0
+    adapt_f, adapt_time = ((grid.adapt_f, grid.adapt_info['time'])
+                           if grid._setup_pending and grid.adapt_info else (0.0, np.nan))
+    grid._setup_pending = False
+    nu = solver.nu
+    attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=eps,
+                 k=scene.k, c0=scene.c0, gamma=grid.params['gamma'], nu_area=nu[0],
+                 nu_volume=nu[1], nu_moment=nu[2] if solver.ncon == 3 else 0.0,
+                 symmetric=int(scene.symmetric), converged=int(converged),
+                 wall_time=setup + time.perf_counter() - t0, n_procs=comm.getSize(),
+                 cutoff=grid.params['cutoff'], quad_degree=grid.params['quad_degree'],
+                 spacing_smoothing=grid.params['spacing_smoothing'], radius=scene.radius,
+                 reduced_volume=scene.reduced_volume, branch=scene.branch,
+                 under_resolved=int(under), eps_min=grid.eps_min, n_nodes=grid.n_nodes,
+                 max_phi=max_phi,
+                 stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
+                 stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
+                 factorizations=solver.factorizations, adapt=adapt_f,
+                 parent=start.path if start is not None else '',
+                 time_setup=setup, time_adapt=adapt_time,
+                 time_stage1=solver.stats.get('stage1', {}).get('time', np.nan),
+                 time_stage2=solver.stats.get('stage2', {}).get('time', np.nan),
+                 time_assembly=_event_seconds(mpi, ASSEMBLY_EVENTS, stages),
+                 time_linear=_event_seconds(mpi, LINEAR_EVENTS, stages),
+                 peak_rss_mb=mpi.allreduce(
+                     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=_max()),
+                 box=np.asarray(scene.box))
+    if converged and checks:  # an interrupted run checkpoints at once
+        attrs.update(_phase_field_checks(mpi, grid.nodes, phi, attrs))
+    return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status)
+
+
+def _max():
+    from mpi4py import MPI
+    return MPI.MAX
+
+
+def _nodal(grid, values):
+    """Values by global number -> values at every node (Dirichlet nodes -1)."""
+    phi = np.full(grid.n_nodes, -1.0)
+    phi[grid.discrete.layout.order] = values
+    return phi
+
+
+def _run_stages(problem, solver, x, settings, nu0, solved, failures):
+    """Stage 1 then stage 2 (or stage 2 first with -pf_stage1 none), each a
+    PETSc log stage with a one-line summary. A solved start's multipliers
+    `nu0` start stage 1 better than a least-squares fit; stage 2 first starts
+    from the start's multipliers, solved or not. Returns (converged, message,
+    status, (E, A, V, M), the log stages)."""
+    PETSc = petsc()
+    solved_nu = nu0 if solved else None
+    stages = [('pfStage1', lambda v: solver.stage1(v, solved_nu)), ('pfStage2', solver.stage2)]
+    if settings.stage1 == 'none':
+        stages = [('pfStage2', lambda v: solver.stage2_first(v, solved_nu))]
+        if nu0 is None:
+            solver.evaluate(x)
+            solver.nu = solver.least_squares_multipliers()
+        else:
+            solver.nu = np.asarray(nu0, dtype=float)
+    logged = []
+    try:
+        for name, fn in stages:
+            stage = PETSc.Log.Stage(name)
+            logged.append(stage)
+            stage.push()
+            try:
+                vals, _ = fn(x)
+            finally:
+                stage.pop()
+            s = solver.stats[name[2:].lower()]
+            PETSc.Sys.Print(
+                f"{name[2:].lower()}: {s.get('outer', s.get('iterations'))} its"
+                f"{' (' + str(s['inner']) + ' inner)' if 'inner' in s else ''}, E {s['energy']:.8f}, "
+                f"constraint residual {s['residual']:.2e}, max|phi| {problem.max_abs_phi(x):.4f}, "
+                f"{s['time']:.2f} s", comm=problem.comm)
+    except failures as e:
+        status = getattr(e, 'status', 1)
+        return False, str(e), status, problem.gradients(x, solver.gE, solver.gA), logged
+    return True, '', 0, vals, logged
+
+
+def _unused(inserted, comm):
+    """The solve's options that no rank looked up."""
+    if not inserted:
+        return []
+    mine = set(appoptions.options_left()) & {k.lower() for k in inserted}
+    return sorted(set.intersection(*map(set, comm.tompi4py().allgather(sorted(mine)))))
+
+
+def _event_seconds(mpi, names, stages):
+    """Seconds spent in the named log events during the stages, max over ranks."""
+    PETSc = petsc()
+    mine = sum(PETSc.Log.Event(name).getPerfInfo(s.id)['time'] for name in names for s in stages)
+    return mpi.allreduce(mine, op=_max())
+
+
+def _phase_field_checks(mpi, xy, phi, attrs):
+    """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
+    set exists, the energy error and level-set distance against the
+    sharp-interface shape of the scene and the level set's own energy
+    (`limit.level_set_energy`), as attributes. Rank 0 computes."""
+    from pfmembrane.analysis import limit
+    result = {}
+    if mpi.Get_rank() == 0:
+        ckpt = checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded()
+        field_h = limit.PhaseField(ckpt)
+        result['boundary_phi'] = limit.boundary_phi(ckpt, field=field_h)
+        try:
+            c = limit.compare(ckpt, field=field_h)
+            result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
+                          sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
+                          level_set_energy=c['energy_level_set'])
+        except (ValueError, RuntimeError) as e:
+            print(f"sharp interface: no comparison ({e})", flush=True)
+    return mpi.bcast(result, root=0)
