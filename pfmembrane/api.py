@@ -19,11 +19,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from pfmembrane.io import checkpoint, options as appoptions
+from pfmembrane.io.options import Params
 from pfmembrane.kernels import adapt as adaptivity, nodes as nodesets
 from pfmembrane.kernels.basis import locality
 from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
 from pfmembrane.kernels.nodes import spacing_peak
-from pfmembrane.scenes import PAPER_BOX
 
 __all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read']
 
@@ -38,12 +38,15 @@ LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
 
 
-def petsc():
-    """petsc4py's PETSc, started on first use."""
+def petsc(args=None):
+    """petsc4py's PETSc, started on first use with `args` (by default the
+    command line, or nothing in an interactive session)."""
     if 'petsc4py.PETSc' not in sys.modules:
         import petsc4py
-        interactive = hasattr(sys, 'ps1') or 'ipykernel' in sys.modules
-        petsc4py.init(sys.argv[:1] if interactive else sys.argv)
+        if args is None:
+            interactive = hasattr(sys, 'ps1') or 'ipykernel' in sys.modules
+            args = sys.argv[:1] if interactive else sys.argv
+        petsc4py.init(args)
     from petsc4py import PETSc
     PETSc.Log.begin()  # event times feed each result's time split
     return PETSc
@@ -62,13 +65,13 @@ class Scene:
     """The vesicle: A0 = 4 pi R^2, V0 = v 4/3 pi R^3, bending rigidity k,
     spontaneous curvature c0, the (r, z) box (Rb, Zb) or 'auto', the family
     of the initial guess, and whether it is solved on the half box z >= Zb/2."""
-    reduced_volume: float = 0.8
-    c0: float = 0.0
-    radius: float = 0.4
-    k: float = 1.0
-    box: tuple = PAPER_BOX
-    branch: str = 'oblate'
-    symmetric: bool = False
+    reduced_volume: float = Params.reduced_volume
+    c0: float = Params.c0
+    radius: float = Params.radius
+    k: float = Params.k
+    box: tuple = Params.box
+    branch: str = Params.branch
+    symmetric: bool = Params.symmetric
 
     def __post_init__(self):
         if self.box != 'auto':
@@ -123,8 +126,9 @@ class Grid:
     Delaunay triangles, `spacing_smoothing` the passes over h_a behind beta_a.
     """
 
-    def __init__(self, scene, nodes, gamma=0.8, cutoff=1e-6, quad_degree=4,
-                 spacing_smoothing=3, comm=None):
+    def __init__(self, scene, nodes, gamma=Params.gamma, cutoff=Params.cutoff,
+                 quad_degree=Params.quad_degree, spacing_smoothing=Params.spacing_smoothing,
+                 comm=None):
         from pfmembrane.parallel.discretization import Grid as Discretization
         PETSc = petsc()
         if scene.box == 'auto':
@@ -149,7 +153,7 @@ class Grid:
         self.eps_min = RESOLUTION * spacing_peak(self.discrete.h)
 
     @classmethod
-    def uniform(cls, scene, nodes=6124, **kwargs):
+    def uniform(cls, scene, nodes=Params.nodes, **kwargs):
         """A near-hexagonal grid of about `nodes` nodes of the full box (its
         half with the scene's mirror plane), nodes on every edge."""
         return cls(scene, nodesets.uniform(scene.box, nodes, half=scene.symmetric), **kwargs)
@@ -240,7 +244,7 @@ class Result:
 def read(path, comm=None, expect_box=None):
     """The result stored in a checkpoint; collective when `comm` (mpi4py or
     PETSc) is given. `expect_box`: (Rb, Zb) it must have."""
-    if comm is not None and not hasattr(comm, 'Get_rank'):
+    if comm is not None and hasattr(comm, 'tompi4py'):
         comm = comm.tompi4py()
     ck = checkpoint.read(path, comm, expect_box=expect_box)
     return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)
@@ -426,7 +430,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=_max()),
                  box=np.asarray(scene.box))
     if converged and checks:  # an interrupted run checkpoints at once
-        attrs.update(_phase_field_checks(mpi, grid.nodes, phi, attrs))
+        attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status)
 
 
@@ -495,7 +499,7 @@ def _event_seconds(mpi, names, stages):
     return mpi.allreduce(mine, op=_max())
 
 
-def _phase_field_checks(mpi, xy, phi, attrs):
+def phase_field_checks(mpi, xy, phi, attrs):
     """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
     set exists, the energy error and level-set distance against the
     sharp-interface shape of the scene and the level set's own energy

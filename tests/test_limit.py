@@ -269,14 +269,14 @@ def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, mon
     """A converged run measures phi_h before it writes its checkpoint: a level set
     whose projection fails must cost the comparison, not the run."""
     from petsc4py import PETSc
-    from pfmembrane.cli import app
+    from pfmembrane import api
 
     def fails(*args, **kwargs):
         raise RuntimeError("the projection onto phi_h = 0 did not converge")
 
-    checked = app.phase_field_checks(PETSc.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
+    checked = api.phase_field_checks(PETSc.COMM_SELF.tompi4py(), sphere.nodes, sphere.phi, dict(sphere.attrs))
     monkeypatch.setattr(limit, "level_set", fails)
-    failed = app.phase_field_checks(PETSc.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
+    failed = api.phase_field_checks(PETSc.COMM_SELF.tompi4py(), sphere.nodes, sphere.phi, dict(sphere.attrs))
 
     assert "sharp_energy" in checked and "sharp_energy" not in failed
     assert failed["boundary_phi"] == checked["boundary_phi"]

@@ -24,16 +24,13 @@ import sys
 from functools import lru_cache
 from typing import NamedTuple
 
-import matplotlib
-import matplotlib.pyplot as plt
-from matplotlib.figure import Figure
-from matplotlib.path import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from pfmembrane.io import checkpoint
 from pfmembrane.analysis import sharp
+from pfmembrane.analysis.contour import zero_contour
 from pfmembrane.kernels.basis import folded_basis, locality
 from pfmembrane.kernels.maxent import interpolate
 from pfmembrane.kernels.nodes import raster_axes
@@ -252,10 +249,10 @@ def _raster_contour(field, box, step):
     R, Z = np.meshgrid(r, z)
     phi = field(np.column_stack([R.ravel(), Z.ravel()])).reshape(R.shape)
     if not phi.min() < 0.0 < phi.max():
-        return []  # matplotlib would contour a level inside the data range instead
-    # A figure that is never shown does the contouring: the caller's stay untouched.
-    contours = Figure().add_subplot().contour(r, z, phi, levels=[0.0])
-    return [line for line in contours.allsegs[0] if len(line) > 1]
+        # No sign change, no membrane: where phi_h >= 0 touches 0, zero_contour
+        # would still trace loops around the zero raster points.
+        return []
+    return zero_contour(r, z, phi)
 
 
 def distance(curve, shape, centre=0.0):
@@ -552,7 +549,10 @@ def main(argv=None):
         no sharp counterpart.
     """
     args = _parser().parse_args(argv)
+    import matplotlib
     matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     try:
         ckpts = [checkpoint.read(path).unfolded() for path in args.checkpoints]
         rows = [_row(path, ckpt, args.samples)
@@ -592,6 +592,8 @@ def _scene(attrs):
 
 def _row(path, ckpt, samples):
     """Everything the report and the figure need about one checkpoint."""
+    from matplotlib.path import Path
+
     result, curve, target = _compare(ckpt, samples)
     # The sharp curve closed along the axis bounds the sharp vesicle.
     inside = Path(target).contains_points
@@ -677,6 +679,8 @@ def _extrapolation(eps, energies, e_sharp, name):
 
 def _figure(rows):
     """Figure 8b of the paper, and the distance along each level set."""
+    import matplotlib.pyplot as plt
+
     figure, (shapes, along) = plt.subplots(
         1, 2, figsize=(11.0, 4.8), gridspec_kw={"width_ratios": [1.0, 1.3]})
     drawn = set()

@@ -154,6 +154,54 @@ def _get(opts, name, kind, default, prefix=''):
         raise UsageError(f"-{key}: cannot read {text!r} as {KINDS[kind]}") from None
 
 
+class Table(dict):
+    """Options of options files in PETSc's format (`-name [value]`, `#`
+    comments), later ones overriding earlier ones, behind the part of
+    petsc4py's Options interface that `read` uses: the drivers read step
+    files with it without touching the global database."""
+
+    @classmethod
+    def from_files(cls, *paths, args=()):
+        table = cls()
+        for path in paths:
+            try:
+                with open(path) as f:
+                    text = f.read()
+            except OSError as e:
+                raise UsageError(f"cannot read options file {path}: {e.strerror}") from None
+            table._insert(' '.join(line.split('#', 1)[0] for line in text.splitlines()).split())
+        table._insert(list(args))
+        return table
+
+    def _insert(self, tokens):
+        name = None
+        for token in tokens:
+            if token.startswith('-') and len(token) > 1 and not _is_number(token):
+                name = token[1:].lower()
+                self[name] = ''
+            elif name is not None:
+                self[name] = token if not self[name] else self[name] + ' ' + token
+            else:
+                raise UsageError(f"options: value {token!r} follows no option name")
+
+    def hasName(self, name):
+        return name.lower() in self
+
+    def getString(self, name, default=None):
+        return self.get(name.lower(), default)
+
+    def getAll(self):
+        return dict(self)
+
+
+def _is_number(token):
+    try:
+        float(token)
+        return True
+    except ValueError:
+        return False
+
+
 def check_names(opts, prefix='', record=Params):
     """Refuse a `-PREFIXpf_` option that `record` does not know: a typo must
     fail before the expensive work, not at the end of the run."""

@@ -5,11 +5,13 @@
     python -m pfmembrane.studies.branch --plot runs/branches
 
 The first reduced volume is solved from the spheroid initial guess of the branch; every next
-one restarts from the checkpoint of the previous one on the same grid (`-pf_restart PREV.h5
--pf_reduced_volume v`), so that the solution follows the branch as the vesicle deflates. A step
-is `mpiexec -n NP python -m pfmembrane -options_file options/branch/<branch>.opts ...` writing
-OUT/<branch>/v<v>.h5; options after `--` are added to every run (solver options such as
-`-pf_stage1_rtol 1e-5`: a checkpoint is reused whatever they were). Steps whose converged
+one restarts from the result of the previous one (`-pf_restart PREV.h5 -pf_reduced_volume v
+-pf_stage1 none`: Newton on the bordered system first, both stages should it fail), so that the
+solution follows the branch as the vesicle deflates. A step is what `python -m pfmembrane
+-options_file options/branch/<branch>.opts ...` would run, writing OUT/<branch>/v<v>.h5, but all
+steps run in one process on NP ranks (started under mpiexec if need be), on one grid built once,
+each from the previous result in memory. Options after `--` are added to every run (solver
+options such as `-pf_stage1_rtol 1e-5`: a checkpoint is reused whatever they were). Steps whose converged
 checkpoint of the same scene, grid and start exists are not run again (unless --force); once a
 step runs, the later ones run too. The branch stops at the first failed step. The table goes
 to OUT/<branch>.md.
@@ -24,7 +26,6 @@ import argparse
 import glob
 import math
 import os
-import subprocess
 import sys
 import time
 
@@ -117,9 +118,13 @@ def run(branch, vs, box, args):
         status), ``message`` (the run's own line on stderr when it failed) and
         ``written`` (whether `path` is a checkpoint of this step).
     """
+    from pfmembrane import api, run as runs
+    from pfmembrane.io import options
+    PETSc = api.petsc(sys.argv[:1])
+    say = PETSc.Sys.Print
     scene = SCENE.format(branch)
     n_nodes = len(uniform(box, args.nodes))
-    steps, parent, rerun = [], '', args.force
+    steps, parent, rerun, cache = [], '', args.force, runs.Cache()
     for v in vs:
         path = os.path.join(args.out, branch, f"v{v:g}.h5")
         step = dict(v=v, path=path, parent=parent, wall=None, status=0, message='', written=True)
@@ -128,23 +133,26 @@ def run(branch, vs, box, args):
                         parent=parent)
         if rerun or not reusable(path, expected):
             rerun = True
-            cmd = launch.command(
-                args.np, '-options_file', scene, '-pf_eps', f"{args.eps:g}",
-                '-pf_nodes', str(args.nodes), '-pf_box', f"{box[0]:g},{box[1]:g}",
-                '-pf_reduced_volume', f"{v:g}", '-pf_output', path,
-                *(['-pf_restart', parent] if parent else []), *args.options)
-            print(' '.join(cmd), flush=True)
+            line = ['-pf_eps', f"{args.eps:g}", '-pf_nodes', str(args.nodes),
+                    '-pf_box', f"{box[0]:g},{box[1]:g}", '-pf_reduced_volume', f"{v:g}",
+                    '-pf_output', path,
+                    *(['-pf_restart', parent, '-pf_stage1', 'none'] if parent else []),
+                    *args.options]
+            say(f"-- v = {v:g}: -options_file {scene} {' '.join(line)}")
             t0 = time.time()
-            done = launch.run(cmd, stderr=subprocess.PIPE, text=True)
-            sys.stderr.write(done.stderr)
+            try:
+                table_ = options.Table.from_files(scene, args=line)
+                res, _ = runs.execute(options.read(table_), PETSc.COMM_WORLD, say,
+                                      runs.solver_options(table_), prefix=None, cache=cache)
+                runs.summary(res, path, say)
+                step['status'], step['message'] = res.status, res.message
+            except options.UsageError as e:
+                # invalid input writes no checkpoint: a file there is an older one
+                step['status'], step['message'], step['written'] = 2, f"error: {e}", False
             step['wall'] = time.time() - t0
-            step['status'] = done.returncode
-            if done.returncode != 0:
-                own = [line for line in done.stderr.splitlines() if line.startswith('pfmembrane')]
-                step['message'] = own[-1] if own else ''
-                # Exit statuses 2-4 write no checkpoint: a file there is an older one.
-                step['written'] = os.path.exists(path) and os.path.getmtime(path) >= t0
-                print(f"v = {v:g}: exit status {done.returncode}; the branch stops here", flush=True)
+            if step['status'] != 0:
+                say(f"v = {v:g}: exit status {step['status']} ({step['message']}); "
+                    "the branch stops here")
                 break
         parent = path
     return steps
@@ -199,8 +207,8 @@ def header(branch, vs, box, need, sizes, given, args):
         f"c = {sizes['spheroid'][1]:.4f}.\n\n"
         "E_sharp: the axisymmetric Canham-Helfrich shape of the same scene (checkpoint attribute "
         "`sharp_energy`); error vs sharp = (E - E_sharp) / E_sharp; d max: largest distance from "
-        "phi_h = 0 to the sharp curve (a jump to another branch shows here). run s: the run's "
-        "own wall time; wall s: this invocation's, mpiexec included.\n\n"
+        "phi_h = 0 to the sharp curve (a jump to another branch shows here). run s: the step's "
+        "own wall time (grid set-up on the first); wall s: this invocation's, checkpoint included.\n\n"
         f"Regenerate: `python -m pfmembrane.studies.branch --branch {branch} --from {vs[0]:g} "
         f"--to {vs[-1]:g} --step {args.step:g} --out {args.out} --np {args.np} --eps {args.eps:g} "
         f"--nodes {args.nodes}{f' --box {rb:g},{zb:g}' if given else ''} --force"
@@ -223,9 +231,13 @@ def continuation(args):
               f"branch from v = {vs[0]:g} to {vs[-1]:g} with a margin of {MARGIN:g} eps: "
               f"need Rb >= {need[0]:.4f}, Zb >= {need[1]:.4f}", file=sys.stderr)
         return 2
+    launch.ensure_ranks(args.np, 'pfmembrane.studies.branch', sys.argv[1:])
     t0 = time.time()
     steps = run(args.branch, vs, box, args)
     elapsed = time.time() - t0
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.Get_rank() != 0:
+        return 1 if any(s['status'] for s in steps) else 0
     rows, total = table(steps)
     failed = [s for s in steps if s['status'] != 0]
     notes = []

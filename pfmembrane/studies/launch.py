@@ -1,14 +1,17 @@
-"""Child runs of the application, for the drivers (tables, sequences, branches,
-benchmarks, the stability study): the one place that builds an mpiexec line
-and the environment it runs in."""
+"""Child runs under mpiexec, for the drivers (tables, benchmarks, the
+stability study, and the in-process drivers started without mpiexec): the
+one place that builds an mpiexec line and the environment it runs in."""
 import os
 import subprocess
 import sys
 
 
 def command(nprocs, *args, module='pfmembrane'):
-    """`mpiexec -n NPROCS python -m MODULE ARGS...` with this interpreter."""
-    return ['mpiexec', '-n', str(nprocs), sys.executable, '-m', module, *args]
+    """`mpiexec -n NPROCS python -m MODULE ARGS...` with this interpreter, and
+    the mpiexec installed beside it if there is one (`make install`'s)."""
+    beside = os.path.join(os.path.dirname(sys.executable), 'mpiexec')
+    mpiexec = beside if os.access(beside, os.X_OK) else 'mpiexec'
+    return [mpiexec, '-n', str(nprocs), sys.executable, '-m', module, *args]
 
 
 def environment():
@@ -21,3 +24,16 @@ def environment():
 def run(cmd, **kwargs):
     """subprocess.run of an mpiexec line in `environment()`."""
     return subprocess.run(cmd, env=environment(), **kwargs)
+
+
+def under_mpiexec():
+    """Whether this process was started by mpiexec (Open MPI, or a PMI launcher
+    such as MPICH's), told without initialising MPI."""
+    return any(k in os.environ for k in ('OMPI_COMM_WORLD_SIZE', 'PMI_SIZE', 'PMIX_RANK'))
+
+
+def ensure_ranks(nprocs, module, argv):
+    """Run `python -m MODULE ARGV` under `mpiexec -n NPROCS` and exit with its
+    status, unless this process already runs under mpiexec or one rank is asked."""
+    if nprocs > 1 and not under_mpiexec():
+        sys.exit(run(command(nprocs, *argv, module=module)).returncode)

@@ -4,11 +4,13 @@
     python -m pfmembrane.studies.sequence options/adapt/discocyte --scene options/discocyte.opts
 
 Each step is an options file of the directory, run in name order as
-`mpiexec -n NP python -m pfmembrane -options_file SCENE -options_file STEP`;
-a step restarts from the checkpoint of an earlier one, with `-pf_adapt f`
-where a new grid is made. Steps whose converged checkpoint exists are not
-run again (unless --force); a step whose start did not converge is not run.
-`--report` only writes the table of the checkpoints that exist.
+`python -m pfmembrane -options_file SCENE -options_file STEP` would run it,
+but all in one process on NP ranks (started under mpiexec if need be): a
+step restarts from the result of an earlier one in memory, on its grid when
+the step keeps the nodes and the basis, or with `-pf_adapt f` on a new grid.
+Steps whose converged checkpoint exists are not run again (unless --force);
+a step whose start did not converge is not run. `--report` only writes the
+table of the checkpoints that exist.
 """
 import argparse
 import glob
@@ -55,13 +57,18 @@ def converged(path):
         return False
 
 
-def run(steps, scene, nprocs, force=False):
-    """Run the steps in order; returns {step: wall seconds or None if reused}.
+def run(steps, scene, force=False):
+    """Run the steps in order in this process; returns {step: wall seconds or
+    None if reused}. Collective on COMM_WORLD.
 
     A step whose restart checkpoint did not converge is not run; the steps
     that do not depend on it still are.
     """
-    walls = {}
+    from pfmembrane import api, run as runs
+    from pfmembrane.io import options
+    PETSc = api.petsc(sys.argv[:1])
+    say = PETSc.Sys.Print
+    cache, walls = runs.Cache(), {}
     for step in steps:
         out = output_of(step)
         if not force and converged(out):
@@ -69,15 +76,29 @@ def run(steps, scene, nprocs, force=False):
             continue
         start = option_of(step, 'pf_restart')
         if start is not None and not converged(start):
-            print(f"{step}: not run, its start {start} did not converge", flush=True)
+            say(f"{step}: not run, its start {start} did not converge")
             continue
-        cmd = launch.command(nprocs, '-options_file', scene, '-options_file', step)
-        print(' '.join(cmd), flush=True)
+        say(f"-- {step}")
         t0 = time.perf_counter()
-        status = launch.run(cmd).returncode
+        try:
+            table = options.Table.from_files(scene, step)
+            res, _ = runs.execute(options.read(table), PETSc.COMM_WORLD, say,
+                                  runs.solver_options(table), prefix=None, cache=cache)
+            runs.summary(res, out, say)
+            status = res.status
+            if status:
+                say(f"pfmembrane: {res.message}")
+        except options.UsageError as e:
+            say(f"pfmembrane: error: {e}")
+            status = 2
         walls[step] = time.perf_counter() - t0
+        a = res.attrs if status != 2 else {}
+        if a:
+            say(f"{os.path.basename(step)}: set-up {a['time_setup']:.1f} s, solve "
+                f"{np.nansum([a['time_stage1'], a['time_stage2']]):.1f} s, wall "
+                f"{walls[step]:.1f} s")
         if status != 0:
-            print(f"{step}: exit status {status}", flush=True)
+            say(f"{step}: exit status {status}")
     return walls
 
 
@@ -150,7 +171,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('directory', help='directory of step options files')
     ap.add_argument('--scene', required=True, help='scene options file (options/*.opts)')
-    ap.add_argument('--np', type=int, default=2)
+    ap.add_argument('--np', type=int, default=2, help='ranks, when not started by mpiexec')
     ap.add_argument('--force', action='store_true', help='rerun steps with a converged checkpoint')
     ap.add_argument('--out', default=None, help='table path (default runs/adapt/<name>.md)')
     ap.add_argument('--report', action='store_true',
@@ -159,9 +180,15 @@ def main(argv=None):
                     help='a sentence for the header: how the machine was shared, reruns')
     args = ap.parse_args(argv)
     steps = steps_of(args.directory)
+    if not args.report:
+        launch.ensure_ranks(args.np, 'pfmembrane.studies.sequence', sys.argv[1:])
     t0 = time.perf_counter()
-    walls = {} if args.report else run(steps, args.scene, args.np, args.force)
+    walls = {} if args.report else run(steps, args.scene, args.force)
     elapsed = time.perf_counter() - t0
+    if not args.report:
+        from mpi4py import MPI
+        if MPI.COMM_WORLD.Get_rank() != 0:
+            return 0
     rows, total, ranks = table(steps, walls)
     name = os.path.basename(os.path.normpath(args.directory))
     out = args.out or os.path.join('runs', 'adapt', name + '.md')

@@ -1,0 +1,132 @@
+"""One run of the application's options (`io.options.Params`): its scene,
+start, grid and solve through the API, and its checkpoint.
+
+The command line runs one; the study drivers run many in one process with a
+`Cache`, so that a step on the grid of an earlier step reuses that grid (its
+basis, operators and partition) and starts from its result in memory.
+"""
+import os
+import time
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from pfmembrane import api
+from pfmembrane.io import options
+
+
+@dataclass
+class Cache:
+    """Results by checkpoint path and uniform grids by their parameters."""
+    results: dict = field(default_factory=dict)
+    grids: dict = field(default_factory=dict)
+
+
+def start_of(p, comm, cache):
+    """The restart's result (None for a fresh start) and the scene, whose box
+    is the checkpoint's on a restart and `auto` sized for a fresh start."""
+    if not p.restart:
+        scene = api.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
+        scene = scene.sized(p.eps)
+        options.check_fits(scene, p.eps)
+        return None, scene
+    start = cache.results.get(os.path.abspath(p.restart))
+    if start is None or (p.box != 'auto' and not np.allclose(start.attrs['box'], p.box)):
+        # -pf_box auto continues in the checkpoint's box
+        start = api.read(p.restart, comm, expect_box=None if p.box == 'auto' else p.box)
+    half = bool(start.attrs.get('symmetric', 0))
+    if half != p.symmetric:
+        raise options.UsageError(
+            f"-pf_restart {p.restart} holds a {'half' if half else 'full'}-box solution: "
+            f"{'add' if half else 'remove'} -pf_symmetric to continue it")
+    return start, api.Scene(p.reduced_volume, p.c0, p.radius, p.k,
+                            tuple(start.attrs['box']), p.branch, p.symmetric)
+
+
+def grid_of(p, scene, start, comm, cache):
+    """The uniform grid of -pf_nodes, the restart's nodes, or with -pf_adapt
+    those nodes relocated by CVT; the basis parameters are the options'. A
+    grid already built for the same nodes and parameters is reused."""
+    params = dict(gamma=p.gamma, cutoff=p.cutoff, quad_degree=p.quad_degree,
+                  spacing_smoothing=p.spacing_smoothing)
+    if start is not None and p.adapt:
+        return api.adapt(start, p.adapt, comm=comm, **params)
+    if start is not None:
+        if start.grid is not None and start.grid.params == params and start.grid.fits(scene):
+            return start.grid
+        return api.Grid(scene, start.nodes, comm=comm, **params)
+    key = (scene.box, scene.symmetric, p.nodes, tuple(sorted(params.items())))
+    if key not in cache.grids:
+        cache.grids[key] = api.Grid.uniform(scene, p.nodes, comm=comm, **params)
+    return cache.grids[key]
+
+
+def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None):
+    """Solve the run of `p` and write its checkpoint. Collective.
+
+    `solve_options` (command-line names without the dash) go to the solve
+    under `prefix`; the command line leaves them in the global database.
+    Returns (result, checkpoint path).
+    """
+    cache = cache if cache is not None else Cache()
+    t_start = time.perf_counter()
+    output = p.output or options.default_output(p)
+    start, scene = start_of(p, comm, cache)
+    print_fn(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
+             f"v={p.reduced_volume:g} box={scene.box[0]:g}x{scene.box[1]:g} "
+             f"gamma={p.gamma:g} cutoff={p.cutoff:g} quad={p.quad_degree} "
+             f"stage1={p.stage1} ranks={comm.getSize()}"
+             f"{' half box (mirror z=' + format(scene.zc, 'g') + ')' if p.symmetric else ''}")
+    grid = grid_of(p, scene, start, comm, cache)
+    fresh = grid._setup_pending
+    t_setup = time.perf_counter() - t_start
+    d = grid.discrete
+    print_fn(f"grid: {grid.n_nodes} nodes ({d.layout.nglobal} free), {d.nquad} quadrature "
+             f"points, eps_min {grid.eps_min:.4g}, set-up {t_setup:.2f} s"
+             f"{'' if fresh else ' (grid reused)'}")
+    res = api.solve(scene, grid, p.eps, start=start, options=solve_options, prefix=prefix)
+    # The run's own clocks: reading the restart and adapting count too.
+    res.attrs.update(wall_time=time.perf_counter() - t_start, time_setup=t_setup,
+                     parent=p.restart)
+    if comm.getRank() == 0:
+        os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
+    stage = api.petsc().Log.Stage('pfCheckpoint')
+    stage.push()
+    try:
+        res.save(output)
+    finally:
+        stage.pop()
+    cache.results[os.path.abspath(output)] = res
+    return res, output
+
+
+def solver_options(table):
+    """The entries of an options table that belong to a solve: the solver's
+    own `-pf_` settings and every PETSc option."""
+    own = {'pf_' + f.name for f in fields(options.Settings)}
+    return {k: v for k, v in table.items() if not k.startswith('pf_') or k in own}
+
+
+def summary(res, output, print_fn):
+    """The result line, and the box and sharp-interface lines where they apply."""
+    from pfmembrane.analysis.limit import BOUNDARY_TOL
+    a = res.attrs
+    print_fn(
+        f"result: E {a['energy']:.8f} nu_A {a['nu_area']:.6g} nu_V {a['nu_volume']:.6g} "
+        f"max|phi| {a['max_phi']:.4f} converged {a['converged']}"
+        f"{' UNDER-RESOLVED' if a['under_resolved'] else ''} wall {a['wall_time']:.2f} s "
+        f"-> {output}")
+    if a.get("boundary_phi", -1.0) > -1.0 + BOUNDARY_TOL:
+        box = a['box']
+        print_fn(
+            f"warning: phi_h reaches {a['boundary_phi']:.4f} one eps inside the box edges, "
+            f"which hold -1: the box {box[0]:g}x{box[1]:g} constrains the vesicle "
+            "(enlarge -pf_box, or -pf_box auto)")
+    if 'sharp_energy' in a:
+        print_fn(
+            f"sharp interface: E {a['sharp_energy']:.6f}, relative error "
+            f"{100 * a['sharp_rel_error']:+.3f}%, phi_h = 0 within {a['sharp_dist_max']:.2e} "
+            f"(mean {a['sharp_dist_mean']:.2e}) of its curve"
+            + (f"; the level set's own energy {a['level_set_energy']:.6f} "
+               f"({100 * (a['level_set_energy'] / a['sharp_energy'] - 1):+.4f}%)"
+               if np.isfinite(a['level_set_energy']) else ""))
