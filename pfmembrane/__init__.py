@@ -13,9 +13,10 @@ __all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read']
 
 
 def __getattr__(name):
-    if name in __all__:
-        from pfmembrane import api
-        return getattr(api, name)
+    if name in __all__ or name == 'api':
+        import importlib
+        api = importlib.import_module('pfmembrane.api')
+        return api if name == 'api' else getattr(api, name)
     raise AttributeError(f"module 'pfmembrane' has no attribute {name!r}")
 
 

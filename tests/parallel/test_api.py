@@ -1,0 +1,39 @@
+"""The Python API on COMM_WORLD (run under mpiexec -n 2): a distributed solve
+equals the one-rank solve of the same scene, and a grid and its partition
+serve several solves."""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+import pfmembrane as pf
+
+SCENE = pf.Scene(reduced_volume=0.8, branch='oblate')
+HALF = pf.Scene(reduced_volume=0.8, branch='oblate', symmetric=True)
+
+
+@pytest.mark.parametrize('scene', [SCENE, HALF], ids=['full box', 'half box'])
+def test_ranks_agree_with_one_rank(scene):
+    world = pf.Grid.uniform(scene, nodes=1500)
+    alone = pf.Grid.uniform(scene, nodes=1500, comm=PETSc.COMM_SELF)
+    assert PETSc.COMM_WORLD.getSize() == 2
+    many = pf.solve(scene, world, eps=0.075, checks=False)
+    one = pf.solve(scene, alone, eps=0.075, checks=False)
+    assert many.converged and one.converged
+    assert many.energy == pytest.approx(one.energy, rel=1e-10)
+    assert np.allclose(many.nu, one.nu, rtol=1e-7)
+    assert np.allclose(many.phi, one.phi, atol=1e-7)
+    # every rank holds the whole result
+    energies = PETSc.COMM_WORLD.tompi4py().allgather(many.energy)
+    assert energies[0] == energies[1]
+
+
+def test_a_grid_serves_eps_and_volume_steps():
+    grid = pf.Grid.uniform(SCENE, nodes=1500)
+    first = pf.solve(SCENE, grid, eps=0.06, checks=False)
+    deflated = pf.Scene(reduced_volume=0.78, branch='oblate')
+    step = pf.solve(deflated, grid, eps=0.06, start=first, options={'pf_stage1': 'none'},
+                    checks=False)
+    assert step.converged and step.attrs['time_setup'] == 0.0
+    assert step.attrs['stage1_iterations'] == -1  # straight to the bordered Newton
+    assert step.attrs['volume'] == pytest.approx(deflated.volume, rel=1e-10)
+    assert step.energy > first.energy  # deflating the discocyte costs bending energy
