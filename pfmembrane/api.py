@@ -19,7 +19,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from pfmembrane.io import checkpoint, options as appoptions
-from pfmembrane.io.options import Params
+from pfmembrane.io.options import Params, Targets
 from pfmembrane.kernels import adapt as adaptivity, nodes as nodesets
 from pfmembrane.kernels.basis import locality
 from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
@@ -61,7 +61,7 @@ def _comm(comm):
 
 
 @dataclass(frozen=True)
-class Scene:
+class Scene(Targets):
     """The vesicle: A0 = 4 pi R^2, V0 = v 4/3 pi R^3, bending rigidity k,
     spontaneous curvature c0, the (r, z) box (Rb, Zb) or 'auto', the family
     of the initial guess, and whether it is solved on the half box z >= Zb/2."""
@@ -77,14 +77,6 @@ class Scene:
         if self.box != 'auto':
             object.__setattr__(self, 'box', tuple(float(b) for b in self.box))
         appoptions.check_scene(self)
-
-    @property
-    def area(self):
-        return 4.0 * math.pi * self.radius ** 2
-
-    @property
-    def volume(self):
-        return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
 
     @property
     def zc(self):

@@ -40,8 +40,20 @@ class Settings:
     force: bool = False
 
 
+class Targets:
+    """The area and volume a scene (with `radius` and `reduced_volume`) fixes."""
+
+    @property
+    def area(self):
+        return 4.0 * math.pi * self.radius ** 2
+
+    @property
+    def volume(self):
+        return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
+
+
 @dataclass
-class Params(Settings):
+class Params(Settings, Targets):
     """Every application option: the scene, its grid, the run and the solver."""
     eps: float = 0.04
     k: float = 1.0
@@ -59,18 +71,6 @@ class Params(Settings):
     cutoff: float = 1e-6
     quad_degree: int = 4
     spacing_smoothing: int = 3
-
-    @property
-    def area(self):
-        return 4.0 * math.pi * self.radius ** 2
-
-    @property
-    def volume(self):
-        return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
-
-    @property
-    def settings(self):
-        return Settings(**{f.name: getattr(self, f.name) for f in fields(Settings)})
 
 
 HELP = {

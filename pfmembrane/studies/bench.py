@@ -31,6 +31,7 @@ import numpy as np
 
 from pfmembrane.studies import launch
 from pfmembrane import scenes as paper
+from pfmembrane.scenes import PAPER_BOX
 
 # The paper's finest uniform grid (296,344 nodes) per eps, and the sharp interface.
 BRANCH = {'discocyte': 'oblate', 'dumbbell': 'prolate'}
@@ -108,7 +109,7 @@ QUICK_NOTE = (' (this is the --quick set: its box is smaller and its grid coarse
 THRESHOLDS = (0.01, 0.005, 0.002)
 
 BASIS_NODES = (6124, 24597, 98388)
-BASIS_BOX = (1.5, 2.0)
+BASIS_BOX = PAPER_BOX
 BASIS_GAMMA, BASIS_CUTOFF, BASIS_DEGREE = 0.8, 1e-6, 4
 TIME_ATTRS = ('time_setup', 'time_stage1', 'time_stage2', 'time_assembly', 'time_linear')
 NAN = float('nan')

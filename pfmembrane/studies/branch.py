@@ -38,9 +38,10 @@ from pfmembrane.kernels.nodes import nodal_spacing, uniform
 from pfmembrane.io.options import BRANCHES
 from pfmembrane.studies.sequence import option_of
 from pfmembrane.analysis.sizing import required_box
+from pfmembrane.scenes import PAPER_BOX
 
 SCENE = os.path.join('options', 'branch', '{}.opts')
-PAPER_BOX = (1.5, 2.0)
+
 # The application requires the initial spheroid to fit the box with 3 eps to spare;
 # the same margin keeps phi = -1 on the box edges away from every shape of the branch.
 MARGIN = 3.0

@@ -4,7 +4,7 @@
                                   [--timeout 1200]
 
 Each case of `CASES` is one `mpiexec -n NP python -m pfmembrane` run: the scene of its branch
-(`tables.SCENE`), the grid and eps of `GRID` (about 3000 uniform nodes in the paper's 1.5 x 2
+(`scenes.SCENE_FILES`), the grid and eps of `GRID` (about 3000 uniform nodes in the paper's 1.5 x 2
 box, eps = 0.06), then the case's own options, writing OUT/<name>.h5. The cases probe the
 resolution rule (eps at and below eps_min, with and without -pf_force), the max-ent locality up
 to the Delaunay limit, the reduced volume on both branches and the sphere, the spontaneous
@@ -44,7 +44,7 @@ from pfmembrane.studies.bench import machine, machine_line
 from pfmembrane.io.checkpoint import CheckpointError
 from pfmembrane.analysis.limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
 from pfmembrane.studies.sequence import converged
-from pfmembrane.studies.tables import SCENE
+from pfmembrane.scenes import SCENE_FILES as SCENE
 
 # Grid and eps of every case unless its options say otherwise (later options win).
 GRID = ('-pf_nodes', '3000', '-pf_box', '1.5,2', '-pf_eps', '0.06')
@@ -83,7 +83,7 @@ class Case:
     expect : str
         How the run should end, a key of `EXPECT`.
     branch : str
-        'oblate' or 'prolate': the scene (`tables.SCENE`).
+        'oblate' or 'prolate': the scene (`scenes.SCENE_FILES`).
     parent : str
         Case whose converged checkpoint this one needs ('' for none); it comes earlier in
         `CASES`.

@@ -2,27 +2,36 @@
 
     python -m pfmembrane.studies.tables [--np 2] [--out runs/tables] [--nodes 6124,12271,24597]
 
-Each entry is one `mpiexec -n NP python -m pfmembrane` run; its checkpoint
-gives the energy, iterations, wall time and peak memory per rank.
+Each entry is the run `python -m pfmembrane -options_file SCENE -pf_nodes N
+-pf_eps EPS` would make, all in one process on NP ranks (started under
+mpiexec if need be), every eps of a grid on that grid built once; its
+checkpoint gives the energy, iterations, wall time (set-up on the first eps of
+a grid) and the process's peak memory per rank so far. Existing checkpoints
+are reused.
 """
 import argparse
 import os
+import sys
 
 import h5py
 
 from pfmembrane.studies import launch
-from pfmembrane.scenes import FINEST, UNIFORM
-
-SCENE = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
+from pfmembrane.scenes import FINEST, SCENE_FILES, UNIFORM
 
 
-def run(branch, nodes, eps, nprocs, out, extra=()):
+def run(branch, nodes, eps, out, cache):
+    """The checkpoint attributes of one entry, solved unless its checkpoint exists."""
+    from pfmembrane import api, run as runs
+    from pfmembrane.io import options
     path = os.path.join(out, f"{branch}_n{nodes}_eps{eps:g}.h5")
     if not os.path.exists(path):
-        cmd = launch.command(nprocs, '-options_file', SCENE[branch], '-pf_nodes', str(nodes),
-                             '-pf_eps', str(eps), '-pf_output', path, *extra)
-        print(' '.join(cmd), flush=True)
-        launch.run(cmd, check=False)
+        PETSc = api.petsc(sys.argv[:1])
+        table = options.Table.from_files(SCENE_FILES[branch], args=[
+            '-pf_nodes', str(nodes), '-pf_eps', str(eps), '-pf_output', path])
+        res, _ = runs.execute(options.read(table), PETSc.COMM_WORLD, PETSc.Sys.Print,
+                              runs.solver_options(table), prefix=None, cache=cache)
+        runs.summary(res, path, PETSc.Sys.Print)
+        return res.attrs
     with h5py.File(path, 'r') as f:
         return dict(f.attrs)
 
@@ -34,6 +43,10 @@ def main(argv=None):
     ap.add_argument('--nodes', default='6124,12271,24597')
     ap.add_argument('--branches', default='oblate,prolate')
     args = ap.parse_args(argv)
+    launch.ensure_ranks(args.np, 'pfmembrane.studies.tables', sys.argv[1:])
+    from pfmembrane import run as runs
+    from mpi4py import MPI
+    cache, root = runs.Cache(), MPI.COMM_WORLD.Get_rank() == 0
     os.makedirs(args.out, exist_ok=True)
     rows = ['| branch | nodes | eps | E (pfmembrane) | E paper (same grid) | diff | E paper (296,344) '
             '| diff | nu_A | nu_V | max phi | its (1+2) | converged | wall s | peak MB/rank |',
@@ -41,7 +54,7 @@ def main(argv=None):
     for branch in args.branches.split(','):
         for n in (int(v) for v in args.nodes.split(',')):
             for eps, ref in UNIFORM[(branch, n)].items():
-                a = run(branch, n, eps, args.np, args.out)
+                a = run(branch, n, eps, args.out, cache)
                 fine = UNIFORM[(branch, FINEST)][eps]
                 rows.append(
                     f"| {branch} | {int(a['n_nodes'])} | {eps:g} | {a['energy']:.5f} | {ref:.5f} | "
@@ -49,11 +62,15 @@ def main(argv=None):
                     f"{a['nu_area']:.4f} | {a['nu_volume']:.3f} | {a.get('max_phi', float('nan')):.4f} | "
                     f"{int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {int(a['converged'])} | "
                     f"{a['wall_time']:.1f} | {a['peak_rss_mb']:.0f} |")
-                print(rows[-1], flush=True)
+                if root:
+                    print(rows[-1], flush=True)
+    if not root:
+        return
     table = os.path.join(args.out, 'uniform.md')
     with open(table, 'w') as f:
-        f.write(f"Uniform grids, {args.np} MPI ranks, gamma 0.8, cut-off 1e-6, degree-4 rule "
-                "(6 points per triangle), axis mirrors. Regenerate: `make tables`.\n\n")
+        f.write(f"Uniform grids, {MPI.COMM_WORLD.Get_size()} MPI ranks, gamma 0.8, cut-off 1e-6, "
+                "degree-4 rule (6 points per triangle), axis mirrors; the eps of a grid solved on "
+                "it in one process. Regenerate: `make tables`.\n\n")
         f.write('\n'.join(rows) + '\n')
     print(table)
 
