@@ -9,7 +9,7 @@ Helfrich model on local max-ent approximants, solved with PETSc.
 The names below come from `pfmembrane.api`, imported on first use so that
 `python -m pfmembrane` starts PETSc before any numerical code loads.
 """
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read']
+__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict']
 
 
 def __getattr__(name):

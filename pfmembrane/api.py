@@ -25,7 +25,7 @@ from pfmembrane.kernels.basis import locality
 from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
 from pfmembrane.kernels.nodes import spacing_peak
 
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read']
+__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict']
 
 # eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
 # distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
@@ -271,6 +271,18 @@ def adapt(result, f, comm=None, **grid_params):
     grid = Grid(scene, xy, **{**params, **grid_params}, comm=comm)
     grid.adapt_info, grid.adapt_f, grid._transferred = info, float(f), (result, phi)
     return grid
+
+
+def predict(older, newer, ratio=1.0):
+    """The secant predictor of a continuation: phi and the multipliers of
+    `newer` + `ratio` (`newer` - `older`), a start for the next solve on
+    `newer`'s grid (`ratio`: the next parameter step over the last one)."""
+    if older.nodes.shape != newer.nodes.shape or not np.array_equal(older.nodes, newer.nodes):
+        raise ValueError("predict needs two results on the same nodes")
+    phi = newer.phi + ratio * (newer.phi - older.phi)
+    nu = newer.nu + ratio * (newer.nu - older.nu)
+    attrs = {**newer.attrs, **dict(zip(MULTIPLIERS, nu)), 'converged': 1}
+    return Result(newer.nodes, phi, attrs, grid=newer.grid, path=newer.path)
 
 
 _solve_count = itertools.count(1)

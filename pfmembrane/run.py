@@ -22,15 +22,16 @@ class Cache:
     grids: dict = field(default_factory=dict)
 
 
-def start_of(p, comm, cache):
-    """The restart's result (None for a fresh start) and the scene, whose box
-    is the checkpoint's on a restart and `auto` sized for a fresh start."""
+def start_of(p, comm, cache, start=None):
+    """The restart's result (None for a fresh start; `start` in its place when
+    given) and the scene, whose box is the checkpoint's on a restart and `auto`
+    sized for a fresh start."""
     if not p.restart:
         scene = api.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
         scene = scene.sized(p.eps)
         options.check_fits(scene, p.eps)
         return None, scene
-    start = cache.results.get(os.path.abspath(p.restart))
+    start = start or cache.results.get(os.path.abspath(p.restart))
     if start is None or (p.box != 'auto' and not np.allclose(start.attrs['box'], p.box)):
         # -pf_box auto continues in the checkpoint's box
         start = api.read(p.restart, comm, expect_box=None if p.box == 'auto' else p.box)
@@ -61,17 +62,18 @@ def grid_of(p, scene, start, comm, cache):
     return cache.grids[key]
 
 
-def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None):
+def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=None):
     """Solve the run of `p` and write its checkpoint. Collective.
 
     `solve_options` (command-line names without the dash) go to the solve
     under `prefix`; the command line leaves them in the global database.
+    `start` (a `Result`, such as `api.predict`'s) replaces the restart's own.
     Returns (result, checkpoint path).
     """
     cache = cache if cache is not None else Cache()
     t_start = time.perf_counter()
     output = p.output or options.default_output(p)
-    start, scene = start_of(p, comm, cache)
+    start, scene = start_of(p, comm, cache, start)
     print_fn(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
              f"v={p.reduced_volume:g} box={scene.box[0]:g}x{scene.box[1]:g} "
              f"gamma={p.gamma:g} cutoff={p.cutoff:g} quad={p.quad_degree} "

@@ -80,18 +80,19 @@ class ModeForms:
         return r ** m, m * r ** (m - 1) if m else np.zeros_like(r)
 
     def terms(self, m):
-        """The (coefficients, weights) of d2L_m for `gram.upper_data`."""
+        """The (coefficients, weights) of d2L_m for `gram.upper_data`.
+
+        Rows of one operator fold their coefficient into the weight, so the
+        psi^2 terms (W W'', the area's double well, m^2 psi^2 / r^2) make one
+        term; at m = 0 the r^(m-1) coefficients vanish and d2L_0 is the
+        Hessian of `Functionals.hessian`.
+        """
         t, eps = THETA(m), self.eps
         rm, drm = self.powers(m)
-        terms = [({'BL': eps * rm, 'B0': self.dW * rm}, t * self.bend),
-                 ({'B0': rm}, t * self.value),
-                 ({'Br': rm}, t * self.stretch),
-                 ({'Bz': rm}, t * self.stretch)]
-        if m:
-            terms[0][0]['Br'] = 2 * eps * drm
-            terms[2][0]['B0'] = drm
-            terms.append(({'B0': drm}, t * self.stretch))   # the m^2 psi^2 / r^2 of |grad|^2
-        return terms
+        return [({'BL': eps * rm, 'Br': 2 * eps * drm, 'B0': self.dW * rm}, t * self.bend),
+                ({'Br': rm, 'B0': drm}, t * self.stretch),                       # psi_r
+                ({'Bz': 1.0}, t * self.stretch * rm * rm),                        # psi_z
+                ({'B0': 1.0}, t * (self.value * rm * rm + self.stretch * drm * drm))]
 
     def hessian(self, m):
         """Local H_m (CSR on the grid's Hessian pattern)."""

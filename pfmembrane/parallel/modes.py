@@ -29,14 +29,14 @@ from pfmembrane.parallel.assembly import Problem
 # and QAMD ordering (Debian's MUMPS has no METIS; PORD is slow).
 MUMPS_DEFAULTS = {'st_mat_mumps_icntl_13': '1', 'st_mat_mumps_icntl_24': '1',
                   'st_mat_mumps_icntl_7': '6'}
-RETARGETS = 4   # moves of the shift below eigenvalues it missed
+MAX_SHIFTS = 40  # factorizations per m, should the shift have to move far below 0
 
 
 class Spectrum(NamedTuple):
     """One mode's stability: `index` the number of negative eigenvalues (on
     the constraints' tangent space for m = 0), `eigenvalues` the lowest ones
     ascending, `vectors` their modes as distributed Vecs of chi (psi = r^m chi,
-    M_m-normalized), `rigid` for m = 1 the fraction of each mode's squared norm
+    M_m-normalized: t_m int psi^2 r dr dz = 1), `rigid` for m = 1 the fraction of each mode's squared norm
     in the rigid motions' span (`kernels.modes.ModeForms.rigid`), `time` the
     seconds spent on this m (assembly, factorizations, eigensolve)."""
     m: int
@@ -51,14 +51,17 @@ class ModeAnalysis:
     """The mode Hessians of one converged state on its grid. Collective.
 
     `grid` is a `pfmembrane.api.Grid`, `scene` and `eps` those of the state,
-    `phi` its nodal values at every node, `nu_area` its tension. PETSc objects
-    read their options under `prefix` (`-modes_eps_nev`, `-modes_st_...`);
-    the MUMPS defaults set there are removed by `destroy`.
+    `phi` its nodal values at every node, `nu_area` its tension, `nev` the
+    eigenpairs wanted per m. The eigensolver reads its options under `prefix`
+    (`-modes_eps_tol`, `-modes_st_mat_mumps_icntl_7`); the MUMPS defaults set
+    there are removed by `destroy`. The per-triangle blocks of the operators
+    (`kernels.modes.blocks`) are built here, once for every m.
     """
 
-    def __init__(self, grid, scene, eps, phi, nu_area, prefix='modes_', dense=None):
+    def __init__(self, grid, scene, eps, phi, nu_area, nev=4, prefix='modes_'):
         d = grid.discrete
-        self.comm, self.prefix, self.layout = grid.comm, prefix, d.layout
+        self.comm, self.prefix, self.layout, self.nev = grid.comm, prefix, d.layout, nev
+        self._solver = None
         self.problem = Problem(d, eps, scene.k, scene.c0, (scene.area, scene.volume), scene.zc)
         lay = self.layout
         x = self.problem.create_vec()
@@ -66,14 +69,12 @@ class ModeAnalysis:
         gA = x.duplicate()
         self.problem.gradients(x, x.duplicate(), gA)
         self.C = [gA, self.problem.grad_V, self.problem.grad_M][:self.problem.ncon]
-        self.forms = kernel.ModeForms(d.ops, d.gram, kernel.blocks(d.gram) if dense is None
-                                      else dense, self.problem.local(x), eps, scene.k,
-                                      scene.c0, nu_area, scene.zc)
+        self.forms = kernel.ModeForms(d.ops, d.gram, kernel.blocks(d.gram), self.problem.local(x),
+                                      eps, scene.k, scene.c0, nu_area, scene.zc)
         self.K = self.problem.bordered_matrix()
         self.B = self.K.duplicate()
         P = d.gram.pattern
         self._pattern = (P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType))
-        self.scale = self.K.createVecLeft()
         self.defaults = []
         db = PETSc.Options()
         for key, value in MUMPS_DEFAULTS.items():
@@ -82,13 +83,13 @@ class ModeAnalysis:
                 self.defaults.append(prefix + key)
 
     def assemble(self, m):
-        """K = [[H_m, C^T], [C, 0]] (m = 0) or [[H_m, 0], [0, I]] and
-        B = [[M_m, 0], [0, 0]], both scaled symmetrically by diag(M_m)^(-1/2)
-        (1 on the border). Collective.
+        """K = [[H_m, C^T], [C, 0]] (m = 0) or [[H_m, 0], [0, I]], and
+        B = [[M_m, 0], [0, 0]]. Collective.
 
-        The scaling is a congruence: inertia and eigenvalues are unchanged, but
-        r^m spans many decades near the axis (r^12 ~ 1e-20 at the first nodes
-        for m = 6) and unscaled rows of the axis nodes would drown in rounding.
+        r^m spans many decades (the mass diagonal 1e-21 ... 0.05 at m = 6 on
+        2,512 nodes), but MUMPS' own scaling copes: a diag(M_m)^(-1/2)
+        congruence gave the same inertia, no zero pivots either way, and the
+        same eigenvalues to every printed digit.
         """
         K, B, lay = self.K, self.B, self.layout
         ncon, nown, nloc = len(self.C), lay.nowned, lay.nlocal
@@ -111,64 +112,82 @@ class ModeAnalysis:
                 K.setValuesLocal(j, j, 1.0, addv=PETSc.InsertMode.ADD)
         K.assemble()
         B.assemble()
-        B.getDiagonal(self.scale)
-        s = self.scale.getArray()
-        s[:nown] = 1.0 / np.sqrt(s[:nown])
-        s[nown:] = 1.0
-        K.diagonalScale(self.scale, self.scale)
-        B.diagonalScale(self.scale, self.scale)
         return K, B
 
-    def spectrum(self, m, nev=4):
-        """Index and the `nev` lowest eigenpairs of mode m. Collective.
+    def spectrum(self, m):
+        """Index and the lowest eigenpairs of mode m. Collective.
 
         Shift-and-invert finds the eigenvalues nearest the shift sigma, and the
         factorization of K - sigma B counts those below it: when all of these
         are among the ones found, the ones found are the lowest. The first
-        shift is 0, whose inertia is the index; should some negative
-        eigenvalues be missed, the shift moves below the lowest one found.
+        shift is 0, whose inertia is the index. Should eigenvalues below sigma
+        be missed, sigma moves below the lowest one found, and on, by doubling
+        steps, while more than nev eigenvalues lie below it (a factorization
+        each, no eigensolve).
         """
-        from slepc4py import SLEPc
         t0 = time.perf_counter()
         K, B = self.assemble(m)
+        solver = self._eigensolver()
         border = len(self.C) if m == 0 else 0   # the constraints' negative eigenvalues
-        sigma, index = 0.0, None
-        for _ in range(RETARGETS + 1):
-            solver = SLEPc.EPS().create(self.comm)
+        sigma, step, index = 0.0, None, None
+        for _ in range(MAX_SHIFTS):
+            # New values on the same pattern: the factorization is numeric only.
             solver.setOperators(K, B)
-            solver.setProblemType(SLEPc.EPS.ProblemType.GHEP)
-            solver.setDimensions(nev)
             solver.setTarget(sigma)
+            solver.setUp()
+            below = self._factor().getInertia()[0] - border
+            index = below if index is None else index
+            if step is not None and below > self.nev:
+                sigma, step = sigma - step, 2 * step
+                continue
+            solver.solve()
+            values, vectors = self._pairs(solver, K)
+            if not len(values):
+                raise RuntimeError(f"m = {m}: no eigenpair converged (shift {sigma:g})")
+            if np.count_nonzero(values < sigma) >= below:
+                break
+            step = max(values[-1] - values[0], abs(values[0]))
+            sigma = values[0] - step
+        else:
+            raise RuntimeError(f"m = {m}: the {self.nev} lowest eigenvalues were not found with "
+                               f"{MAX_SHIFTS} shifts (index {index})")
+        values, vectors = values[:self.nev], vectors[:self.nev]
+        rigid = self._rigid(vectors) if m == 1 else np.full(len(values), np.nan)
+        return Spectrum(m, index, values, vectors, rigid, time.perf_counter() - t0)
+
+    def _eigensolver(self):
+        """One Krylov-Schur solver for every m: GHEP, shift-and-invert with a
+        MUMPS LDL^T, its symbolic factorization shared by all m (one pattern)."""
+        from slepc4py import SLEPc
+        if self._solver is None:
+            solver = self._solver = SLEPc.EPS().create(self.comm)
+            solver.setProblemType(SLEPc.EPS.ProblemType.GHEP)
+            # A basis of 2 nev + 2 (SLEPc's default: nev + 15) takes ~15% fewer solves.
+            solver.setDimensions(self.nev, 2 * self.nev + 2)
             solver.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_REAL)
             st = solver.getST()
             st.setType(SLEPc.ST.Type.SINVERT)
+            st.setMatStructure(PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # B on K's pattern
             ksp = st.getKSP()
             ksp.setType(PETSc.KSP.Type.PREONLY)
             ksp.getPC().setType(PETSc.PC.Type.CHOLESKY)
             ksp.getPC().setFactorSolverType('mumps')
             solver.setOptionsPrefix(self.prefix)
             solver.setFromOptions()
-            solver.setUp()  # factors K - sigma B
-            below = ksp.getPC().getFactorMatrix().getInertia()[0] - border
-            index = below if index is None else index
-            solver.solve()
-            values, vectors = self._pairs(solver, K)
-            solver.destroy()
-            if np.count_nonzero(values < sigma) >= below or not len(values):
-                break
-            sigma = values[0] - max(values[-1] - values[0], abs(values[0]))
-        rigid = self._rigid(vectors) if m == 1 else np.full(len(values), np.nan)
-        return Spectrum(m, index, values, vectors, rigid, time.perf_counter() - t0)
+        return self._solver
+
+    def _factor(self):
+        return self._solver.getST().getKSP().getPC().getFactorMatrix()
 
     def _pairs(self, solver, K):
-        """Converged eigenvalues ascending and their chi (unscaled) as Vecs."""
+        """Converged eigenvalues ascending and their chi as Vecs."""
         nown = self.layout.nowned
         y = K.createVecRight()
         pairs = []
         for i in range(solver.getConverged()):
             value = solver.getEigenpair(i, y).real
             chi = self.problem.create_vec()
-            chi.setArray(y.getArray(readonly=True)[:nown] * self.scale.getArray(readonly=True)[:nown])
+            chi.setArray(y.getArray(readonly=True)[:nown])
             pairs.append((value, chi))
         pairs.sort(key=lambda p: p[0])
         return np.array([p[0] for p in pairs]), [p[1] for p in pairs]
@@ -199,7 +218,10 @@ class ModeAnalysis:
         return out
 
     def destroy(self):
-        """Free the matrices and remove the MUMPS defaults from the database."""
+        """Free the eigensolver and the mass matrix, and remove the MUMPS
+        defaults from the database. Collective."""
+        if self._solver is not None:
+            self._solver.destroy()
         self.B.destroy()
         db = PETSc.Options()
         for key in self.defaults:

@@ -285,7 +285,7 @@ class Solver:
         # a full step takes |F| from 4.4e-6 to 9.5e-5 and the next to 3e-11, while
         # backtracking (bt) crawled at 2-10% steps for 50 iterations.
         self._set_default('stage2_snes_linesearch_type', 'basic')
-        self._configure_direct(snes.getKSP(), 'stage2_', cholesky=False)
+        self._configure_direct(snes.getKSP(), 'stage2_')
         snes.setFromOptions()
         snes.setConvergenceHistory()
         X0 = X.copy()
@@ -321,12 +321,14 @@ class Solver:
             opts.setValue(key, value)
             self.defaults.append(key)
 
-    def _configure_direct(self, ksp, stage, cholesky):
-        """Defaults: a MUMPS factorization with AMD-type ordering; options override."""
+    def _configure_direct(self, ksp, stage):
+        """Defaults: a MUMPS LDL^T factorization (the bordered matrices are
+        symmetric indefinite, and LDL^T takes about half the work of LU)
+        with AMD-type ordering; options override."""
         ksp.setOptionsPrefix(self.prefix + stage)
         ksp.setType(PETSc.KSP.Type.PREONLY)
         pc = ksp.getPC()
-        pc.setType(PETSc.PC.Type.CHOLESKY if cholesky else PETSc.PC.Type.LU)
+        pc.setType(PETSc.PC.Type.CHOLESKY)
         pc.setFactorSolverType('mumps')
         self._set_default(stage + 'mat_mumps_icntl_7', '6')
         self._set_default(stage + 'mat_mumps_icntl_13', '1')  # inertia in parallel
@@ -336,6 +338,6 @@ class Solver:
         """One LDL^T (MUMPS Cholesky) solver reused by every stage-1 Newton step."""
         if not hasattr(self, '_ksp1'):
             self._ksp1 = PETSc.KSP().create(self.P.comm)
-            self._configure_direct(self._ksp1, 'stage1_', cholesky=True)
+            self._configure_direct(self._ksp1, 'stage1_')
             self._ksp1.setFromOptions()
         return self._ksp1

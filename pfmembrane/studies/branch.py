@@ -6,8 +6,9 @@
 
 The first reduced volume is solved from the spheroid initial guess of the branch; every next
 one restarts from the result of the previous one (`-pf_restart PREV.h5 -pf_reduced_volume v
--pf_stage1 none`: Newton on the bordered system first, both stages should it fail), so that the
-solution follows the branch as the vesicle deflates. A step is what `python -m pfmembrane
+-pf_stage1 none`: Newton on the bordered system first, both stages should it fail), or, after
+two solved volumes, from the secant through them (`api.predict`), so that the solution follows
+the branch as the vesicle deflates. A step is what `python -m pfmembrane
 -options_file options/branch/<branch>.opts ...` would run, writing OUT/<branch>/v<v>.h5, but all
 steps run in one process on NP ranks (started under mpiexec if need be), on one grid built once,
 each from the previous result in memory. Options after `--` are added to every run (solver
@@ -36,7 +37,7 @@ from pfmembrane.io import checkpoint
 from pfmembrane.studies import launch
 from pfmembrane.kernels.nodes import nodal_spacing, uniform
 from pfmembrane.io.options import BRANCHES
-from pfmembrane.studies.sequence import option_of
+from pfmembrane.studies.sequence import iterations, option_of
 from pfmembrane.analysis.sizing import required_box
 from pfmembrane.scenes import PAPER_BOX
 
@@ -126,6 +127,7 @@ def run(branch, vs, box, args):
     scene = SCENE.format(branch)
     n_nodes = len(uniform(box, args.nodes))
     steps, parent, rerun, cache = [], '', args.force, runs.Cache()
+    solved = []  # (v, result) of the steps solved here, for the secant predictor
     for v in vs:
         path = os.path.join(args.out, branch, f"v{v:g}.h5")
         step = dict(v=v, path=path, parent=parent, wall=None, status=0, message='', written=True)
@@ -141,11 +143,18 @@ def run(branch, vs, box, args):
                     *args.options]
             say(f"-- v = {v:g}: -options_file {scene} {' '.join(line)}")
             t0 = time.time()
+            predicted = None
+            if len(solved) >= 2 and solved[-1][1].path == parent:
+                (v0, r0), (v1, r1) = solved[-2:]
+                predicted = api.predict(r0, r1, (v - v1) / (v1 - v0))
             try:
                 table_ = options.Table.from_files(scene, args=line)
                 res, _ = runs.execute(options.read(table_), PETSc.COMM_WORLD, say,
-                                      runs.solver_options(table_), prefix=None, cache=cache)
+                                      runs.solver_options(table_), prefix=None, cache=cache,
+                                      start=predicted)
                 runs.summary(res, path, say)
+                if res.converged:
+                    solved.append((v, res))
                 step['status'], step['message'] = res.status, res.message
             except options.UsageError as e:
                 # invalid input writes no checkpoint: a file there is an older one
@@ -178,7 +187,7 @@ def table(steps):
                      f"{a['sharp_dist_max']:.4f}"] if 'sharp_energy' in a else ['', '', ''])
         rows.append(
             f"| {step['v']:g} | {start} | {a['energy']:.5f} | {a['nu_area']:.4f} | {a['nu_volume']:.3f} "
-            f"| {a['max_phi']:.4f} | {int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} "
+            f"| {a['max_phi']:.4f} | {iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} "
             f"| {int(a['converged'])} | {' | '.join(compared)} | {a['wall_time']:.1f} | {wall} |")
     return rows, total
 

@@ -19,6 +19,7 @@ import os
 import numpy as np
 
 from pfmembrane.studies import bench
+from pfmembrane.studies.sequence import iterations
 from pfmembrane.io import checkpoint
 from pfmembrane.analysis import limit, sizing
 from pfmembrane.kernels.functionals import F_E
@@ -67,7 +68,7 @@ def row(scene, variant, a, ref):
     return (f"| {scene} | {variant} | {a['box'][0]:g} x {a['box'][1]:g} | {int(a['n_nodes'])} | "
             f"{a['energy']:.6f} | {100 * (a['energy'] / ref['energy'] - 1):+.4f}% | "
             f"{a['nu_area']:.4f} | {a['nu_volume']:.3f} | "
-            f"{int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {a['wall_time']:.1f} | "
+            f"{iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} | {a['wall_time']:.1f} | "
             f"{ref['wall_time'] / a['wall_time']:.2f} | {a['peak_rss_mb']:.0f} | {a['bulk']:+.2e} | "
             f"{a['bulk_predicted']:+.2e} | {100 * a['bulk_volume']:+.2f}% | "
             f"{a['vesicle_volume']:.4f} | {int(a['converged'])} |")

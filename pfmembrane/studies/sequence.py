@@ -129,7 +129,7 @@ def table(steps, walls):
             f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {float(a['gamma']):g} | {eps:g} | {a['eps_min']:.4f} "
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
             f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
-            f"| {_its(a['stage1_iterations'])}+{_its(a['stage2_iterations'])} | {int(a['converged'])} "
+            f"| {iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} | {int(a['converged'])} "
             f"| {_setup(a)} | {np.nansum([a['time_stage1'], a['time_stage2']]):.1f} "
             f"| {a['peak_rss_mb']:.0f} | {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
     return rows, total, sorted(ranks)
@@ -154,7 +154,7 @@ def paper_grid(attrs):
     return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))
 
 
-def _its(n):
+def iterations(n):
     """Iteration count, '-' for a stage that did not run."""
     return '-' if n < 0 else str(int(n))
 

@@ -16,6 +16,7 @@ import sys
 import h5py
 
 from pfmembrane.studies import launch
+from pfmembrane.studies.sequence import iterations
 from pfmembrane.scenes import FINEST, SCENE_FILES, UNIFORM
 
 
@@ -60,7 +61,7 @@ def main(argv=None):
                     f"| {branch} | {int(a['n_nodes'])} | {eps:g} | {a['energy']:.5f} | {ref:.5f} | "
                     f"{100 * (a['energy'] / ref - 1):+.2f}% | {fine:.5f} | {100 * (a['energy'] / fine - 1):+.2f}% | "
                     f"{a['nu_area']:.4f} | {a['nu_volume']:.3f} | {a.get('max_phi', float('nan')):.4f} | "
-                    f"{int(a['stage1_iterations'])}+{int(a['stage2_iterations'])} | {int(a['converged'])} | "
+                    f"{iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} | {int(a['converged'])} | "
                     f"{a['wall_time']:.1f} | {a['peak_rss_mb']:.0f} |")
                 if root:
                     print(rows[-1], flush=True)
