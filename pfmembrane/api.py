@@ -425,6 +425,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
                  factorizations=solver.factorizations, adapt=adapt_f,
                  parent=start.path if start is not None else '',
+                 start_topology=start.attrs.get('topology', '') if start is not None else '',
                  time_setup=setup, time_adapt=adapt_time,
                  time_stage1=solver.stats.get('stage1', {}).get('time', np.nan),
                  time_stage2=solver.stats.get('stage2', {}).get('time', np.nan),
@@ -505,9 +506,11 @@ def _event_seconds(mpi, names, stages):
 
 def phase_field_checks(mpi, xy, phi, attrs):
     """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
-    set exists, the energy error and level-set distance against the
-    sharp-interface shape of the scene and the level set's own energy
-    (`limit.level_set_energy`), as attributes. Rank 0 computes."""
+    set exists, its topology (`limit.topology`: ``topology``, ``components``,
+    ``genus``) and, for one sphere like the sharp shapes, the energy error and
+    level-set distance against the sharp-interface shape of the scene and the
+    level set's own energy (`limit.level_set_energy`), as attributes. Rank 0
+    computes."""
     from pfmembrane.analysis import limit
     result = {}
     if mpi.Get_rank() == 0:
@@ -515,7 +518,11 @@ def phase_field_checks(mpi, xy, phi, attrs):
         field_h = limit.PhaseField(ckpt)
         result['boundary_phi'] = limit.boundary_phi(ckpt, field=field_h)
         try:
-            c = limit.compare(ckpt, field=field_h)
+            curve = limit.level_set(ckpt, field=field_h)
+            shape = limit.topology(curve, ckpt.box)
+            result.update(topology=shape['label'], components=shape['components'],
+                          genus=shape['tori'])
+            c = limit.compare(ckpt, field=field_h, curve=curve)
             result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
                           sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
                           level_set_energy=c['energy_level_set'])

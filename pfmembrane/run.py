@@ -110,7 +110,8 @@ def solver_options(table):
 
 
 def summary(res, output, print_fn):
-    """The result line, and the box and sharp-interface lines where they apply."""
+    """The result line, and the box, topology and sharp-interface lines where
+    they apply; a topology other than the start's is flagged."""
     from pfmembrane.analysis.limit import BOUNDARY_TOL
     a = res.attrs
     print_fn(
@@ -124,6 +125,11 @@ def summary(res, output, print_fn):
             f"warning: phi_h reaches {a['boundary_phi']:.4f} one eps inside the box edges, "
             f"which hold -1: the box {box[0]:g}x{box[1]:g} constrains the vesicle "
             "(enlarge -pf_box, or -pf_box auto)")
+    if 'topology' in a:
+        before = a.get('start_topology', '')
+        print_fn(f"topology: phi_h = 0 is {a['topology']}"
+                 + (f" (CHANGED: the start was {before})" if before and before != a['topology']
+                    else ''))
     if 'sharp_energy' in a:
         print_fn(
             f"sharp interface: E {a['sharp_energy']:.6f}, relative error "

@@ -50,6 +50,7 @@ SCENE_ATTRS = ("branch", "reduced_volume", "c0", "radius", "k", "gamma",
 _SEED_STEP = 1.0         # raster spacing of the seed contour, in units of eps
 _NEWTON_STEPS = 20       # projections onto phi_h = 0; 3-5 suffice
 _NEWTON_TOL = 1e-10      # last step, relative to the box size
+_TOPOLOGY_TOL = 1e-3     # an end this close to the axis (or to the other end), box units
 _DENSE = 16              # spline points per polyline segment in `distance`
 _NEAREST = 8             # vertices whose segments `distance` searches
 
@@ -200,6 +201,33 @@ def membrane(ckpt, samples=400, field=None):
         return []
 
 
+def topology(curve, box):
+    """The surfaces of revolution of a level set (`level_set` on the full box).
+
+    Not collective. A piece from the axis to the axis revolves into a sphere
+    (genus 0), a closed piece off the axis into a torus (genus 1); a piece
+    that ends elsewhere leaves through the box. Returns a dict: ``spheres``,
+    ``tori``, ``open`` (pieces through the box), ``components`` (their sum)
+    and ``label`` (e.g. "1 sphere", "2 spheres", "1 torus").
+    """
+    tol = _TOPOLOGY_TOL * max(box)
+    counts = {'spheres': 0, 'tori': 0, 'open': 0}
+    for piece in curve:
+        ends = piece[[0, -1]]
+        if np.all(ends[:, 0] < tol):
+            counts['spheres'] += 1
+        elif np.hypot(*(ends[0] - ends[1])) < tol and piece[:, 0].min() > tol:
+            counts['tori'] += 1
+        else:
+            counts['open'] += 1
+    counts['components'] = sum(counts.values())
+    names = ((counts['spheres'], 'sphere', 'spheres'), (counts['tori'], 'torus', 'tori'),
+             (counts['open'], 'open piece', 'open pieces'))
+    counts['label'] = ' + '.join(f"{n} {one if n == 1 else many}"
+                                 for n, one, many in names if n) or 'none'
+    return counts
+
+
 def level_set_energy(ckpt, curve, field=None):
     """Canham-Helfrich energy of the membrane phi_h = 0, put on the
     constraints of the scene (`pfmembrane.analysis.sharp.shape_energy`).
@@ -322,7 +350,7 @@ def enclosed_volume(curve):
     return total
 
 
-def compare(ckpt, samples=400, field=None):
+def compare(ckpt, samples=400, field=None, curve=None):
     """Energy and shape of a checkpoint against its sharp-interface limit.
 
     Not collective.  The sharp shape (`reference`) has the scene of the
@@ -338,6 +366,8 @@ def compare(ckpt, samples=400, field=None):
         Points of the level set, see `level_set`.
     field : PhaseField, optional
         phi_h of `ckpt`, if the caller has built it already.
+    curve : list of ndarray, optional
+        Its `level_set`, likewise.
 
     Returns
     -------
@@ -350,15 +380,16 @@ def compare(ckpt, samples=400, field=None):
     Raises
     ------
     ValueError
-        If an attribute is missing, the scene has no sharp counterpart or
-        phi_h no zero level set.
+        If an attribute is missing, the scene has no sharp counterpart,
+        phi_h has no zero level set or one that is not one sphere
+        (`topology`: the sharp shapes are).
     RuntimeError
         If the projection onto the level set does not converge (`level_set`).
     """
-    return _compare(ckpt, samples, field)[0]
+    return _compare(ckpt, samples, field, curve)[0]
 
 
-def _compare(ckpt, samples, field=None):
+def _compare(ckpt, samples, field=None, curve=None):
     """`compare`, and the level set and the placed sharp curve it measured."""
     attrs = ckpt.attrs
     missing = [key for key in SCENE_ATTRS if key not in attrs]
@@ -367,7 +398,11 @@ def _compare(ckpt, samples, field=None):
                          f"{', '.join(missing)}")
     shape = reference(*_scene(attrs))
     field = PhaseField(ckpt) if field is None else field
-    curve = level_set(ckpt, samples, field)
+    curve = level_set(ckpt, samples, field) if curve is None else curve
+    found = topology(curve, np.asarray(attrs["box"], dtype=float))
+    if found['label'] != '1 sphere':
+        raise ValueError(f"phi_h = 0 is {found['label']}, the sharp shape one sphere: "
+                         "no comparison across topologies")
     centre = 0.5 * float(attrs["box"][1])
     dist = distance(curve, shape, centre)
     level_energy = level_set_energy(ckpt, curve, field)[0]

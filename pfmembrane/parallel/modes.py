@@ -36,9 +36,10 @@ class Spectrum(NamedTuple):
     """One mode's stability: `index` the number of negative eigenvalues (on
     the constraints' tangent space for m = 0), `eigenvalues` the lowest ones
     ascending, `vectors` their modes as distributed Vecs of chi (psi = r^m chi,
-    M_m-normalized: t_m int psi^2 r dr dz = 1), `rigid` for m = 1 the fraction of each mode's squared norm
-    in the rigid motions' span (`kernels.modes.ModeForms.rigid`), `time` the
-    seconds spent on this m (assembly, factorizations, eigensolve)."""
+    M_m-normalized: t_m int psi^2 r dr dz = 1), `rigid` for m = 1 the fraction
+    of each mode's squared norm in the rigid motions' span
+    (`kernels.modes.ModeForms.rigid`; NaN for other m), `time` the seconds
+    spent on this m (assembly, factorizations, eigensolve)."""
     m: int
     index: int
     eigenvalues: np.ndarray

@@ -56,10 +56,13 @@ def analyse(result, grid, modes, nev, say):
 
 
 def row(s):
-    """One table row: m, index, the lowest eigenvalues (rigid ones starred)."""
-    values = ' '.join(f"{v:.5g}{'*' if r > RIGID else ''}"
-                      for v, r in zip(s.eigenvalues, s.rigid))
-    return f"| {s.m} | {s.index} | {values} | {s.time:.2f} |"
+    """One table row: m, index (and how many of its modes are rigid motions), the
+    lowest eigenvalues (rigid ones starred), the seconds."""
+    rigid = s.rigid > RIGID
+    values = ' '.join(f"{v:.5g}{'*' if r else ''}" for v, r in zip(s.eigenvalues, rigid))
+    moving = np.count_nonzero(rigid & (s.eigenvalues < 0))
+    index = f"{s.index} ({moving} rigid)" if moving else str(s.index)
+    return f"| {s.m} | {index} | {values} | {s.time:.2f} |"
 
 
 HEADER = ("| m | index | lowest eigenvalues | s |", "|---|---|---|---|")

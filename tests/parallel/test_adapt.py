@@ -8,7 +8,7 @@ import pytest
 from mpi4py import MPI
 
 from pfmembrane.kernels import adapt, maxent, nodes
-from pfmembrane.parallel.discretization import folded_basis, locality
+from pfmembrane.kernels.basis import folded_basis, locality
 
 BOX, EPS = (1.0, 1.4), 0.05
 
