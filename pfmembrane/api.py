@@ -390,15 +390,15 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
         x = problem.create_vec()
         x.setArray(phi0[lay.order[lay.start:lay.start + lay.nowned]])
         solver = Solver(problem, settings, prefix)
-        try:
-            state = _run_stages(problem, solver, x, settings, nu0, solved,
-                                (SolveError, Interrupted))
-            values = lay.gather(x)
-            max_phi = problem.max_abs_phi(x)
-        finally:
-            solver.destroy()
-            for key in solver.defaults:
-                PETSc.Options().delValue(key)
+        # Failures of the solve end in `state`; anything else propagates at once,
+        # with no collective cleanup that a rank still computing would never reach.
+        state = _run_stages(problem, solver, x, settings, nu0, solved,
+                            (SolveError, Interrupted))
+        values = lay.gather(x)
+        max_phi = problem.max_abs_phi(x)
+        solver.destroy()
+        for key in solver.defaults:
+            PETSc.Options().delValue(key)
         left = _unused(inserted, comm)
     if left:
         warnings.warn(f"solve options never used: {', '.join('-' + k for k in left)}",
