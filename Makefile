@@ -4,15 +4,16 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 NP ?= 2
 export PETSC_DIR ?= /usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real
+export SLEPC_DIR ?= /usr/lib/slepcdir/slepc3.18/x86_64-linux-gnu-real
 export OMPI_ALLOW_RUN_AS_ROOT = 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM = 1
 export OMPI_MCA_rmaps_base_oversubscribe = 1
 export OMPI_MCA_btl_vader_single_copy_mechanism = none
 MPIEXEC ?= mpiexec
-DEB := python3-petsc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
+DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
-.PHONY: help install run check test test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
+.PHONY: help install run check test test-fast test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
         adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 bench bench-basis bench-scenes branches figures extremes clean
 
 help:
@@ -20,6 +21,7 @@ help:
 	@echo "make run      the default scene (options/discocyte.opts) on $(NP) ranks"
 	@echo "make check    a 30 s smoke run on 2 ranks"
 	@echo "make test     the test suite: serial tests, then the MPI tests on 2 ranks"
+	@echo "make test-fast  the quick serial tests (not marked slow or mpi), under a minute"
 	@echo "make tables   the paper's uniform-grid tables (1, 2) under runs/tables/"
 	@echo "make adapt-discocyte | adapt-dumbbell  the adaptive 6,124-node sequences (Tables 3, 5)"
 	@echo "make adapt-12271 | adapt-24597  the finer adaptive discocyte sequences (Table 4)"
@@ -37,7 +39,7 @@ help:
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
 
 $(PY):
-	@if ! /usr/bin/python3 -c 'import petsc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
+	@if ! /usr/bin/python3 -c 'import petsc4py, slepc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
 	  if command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(DEB); \
 	  elif command -v apt-get >/dev/null && command -v sudo >/dev/null; then \
@@ -52,7 +54,24 @@ $(PY):
 	/usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q -e '.[test]'
 
-install: $(PY)
+# Debian's petsc4py and slepc4py are found through PETSC_DIR and SLEPC_DIR; the venv
+# finds them by a .pth of its own.
+PTH := $(VENV)/pfmembrane-petsc4py.stamp
+$(PTH): $(PY)
+	site=$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
+	  /usr/bin/python3 -c 'import os, petsc4py, slepc4py; [print(os.path.dirname(os.path.dirname(m.__file__))) for m in (petsc4py, slepc4py)]' > "$$site/pfmembrane-petsc4py.pth"
+	touch $@
+
+# An mpiexec that lets Open MPI run as root and with more ranks than cores.
+$(VENV)/bin/mpiexec: $(PY)
+	m=$$(command -v mpiexec); case "$$m" in *$(VENV)*) m=/usr/bin/mpiexec;; esac; \
+	  printf '%s\n' '#!/bin/sh' \
+	  'export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1' \
+	  'export OMPI_MCA_rmaps_base_oversubscribe=1 OMPI_MCA_btl_vader_single_copy_mechanism=none' \
+	  "exec $$m \"\$$@\"" > $@
+	chmod +x $@
+
+install: $(PY) $(PTH) $(VENV)/bin/mpiexec
 
 run: install
 	$(MPIEXEC) -n $(NP) $(PY) -m pfmembrane -options_file options/discocyte.opts
@@ -64,6 +83,10 @@ check: install
 test: install
 	$(PY) -m pytest -q tests
 	$(MPIEXEC) -n 2 $(PY) -m pytest -q tests/parallel
+
+# No application runs and no mpiexec with more than one rank (markers in tests/conftest.py).
+test-fast: install
+	$(PY) -m pytest -q -m 'not slow and not mpi' tests
 
 tables: install
 	$(PY) -m pfmembrane.studies.tables --np $(NP) --out runs/tables

@@ -4,17 +4,13 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from pfmembrane.studies import bench
 
-MPI_ENV = {'OMPI_ALLOW_RUN_AS_ROOT': '1', 'OMPI_ALLOW_RUN_AS_ROOT_CONFIRM': '1',
-           'OMPI_MCA_rmaps_base_oversubscribe': '1',
-           'OMPI_MCA_btl_vader_single_copy_mechanism': 'none'}
 
-
-def test_basis_reports_a_plausible_grid(tmp_path, monkeypatch):
-    for key, value in MPI_ENV.items():
-        monkeypatch.setenv(key, value)
+@pytest.mark.slow
+def test_basis_reports_a_plausible_grid(tmp_path, mpi_env):
     bench.main(['basis', '--nodes', '600', '--np', '1', '--out', str(tmp_path)])
     lines = (tmp_path / 'basis.md').read_text().splitlines()
     assert any(line.startswith('Machine: ') and 'cores' in line for line in lines)

@@ -1,9 +1,6 @@
 """The continuation along a branch (`pfmembrane.studies.branch`, real mpiexec runs) and the
 figures of existing checkpoints (`pfmembrane.studies.figures`)."""
 import math
-import os
-import subprocess
-import sys
 
 import h5py
 import matplotlib
@@ -20,17 +17,17 @@ from pfmembrane.kernels import nodes
 from pfmembrane.analysis import sizing  # noqa: E402
 from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
-           OMPI_MCA_rmaps_base_oversubscribe='1', OMPI_MCA_btl_vader_single_copy_mechanism='none')
 # Two volumes of the oblate branch on a small grid: a few seconds of solves each.
 SMALL = ['--branch', 'oblate', '--from', '0.95', '--to', '0.9', '--step', '0.05',
          '--nodes', '700', '--box', '0.8,1.0', '--eps', '0.06']
 
 
-def run_branch(*args):
-    return subprocess.run([sys.executable, '-m', 'pfmembrane.studies.branch', *map(str, args)], cwd=ROOT,
-                          env=ENV, capture_output=True, text=True, timeout=240)
+@pytest.fixture
+def run_branch(python):
+    """`python -m pfmembrane.studies.branch ARGS...`, in the repository."""
+    def run(*args):
+        return python('-m', 'pfmembrane.studies.branch', *args)
+    return run
 
 
 def table_rows(path):
@@ -41,7 +38,9 @@ def table_rows(path):
             for line in lines[start + 2:] if line.startswith('|')]
 
 
-def test_each_volume_restarts_from_the_one_before(tmp_path):
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_each_volume_restarts_from_the_one_before(tmp_path, run_branch):
     out = tmp_path / 'branches'
     done = run_branch(*SMALL, '--out', out)
     assert done.returncode == 0, done.stderr
@@ -66,7 +65,8 @@ def test_each_volume_restarts_from_the_one_before(tmp_path):
     assert [row[-1] for row in table_rows(out / 'oblate.md')] == ['reused', 'reused']
 
 
-def test_a_box_too_small_for_the_branch_is_refused(tmp_path):
+@pytest.mark.slow
+def test_a_box_too_small_for_the_branch_is_refused(tmp_path, run_branch):
     done = run_branch(*SMALL[:-4], '--box', '0.8,0.9', '--eps', '0.06', '--out', tmp_path)
     assert done.returncode == 2
     assert 'cannot hold the oblate branch' in done.stderr and 'Zb >= 0.95' in done.stderr
@@ -100,6 +100,7 @@ def small_checkpoint(path, eps=0.06, box=(0.8, 1.0), v=0.8, radius=0.4):
     checkpoint.write(path, xy, spheroid_phi(xy, a, c, 0.5 * box[1], eps), attrs)
 
 
+@pytest.mark.slow
 def test_figures_skip_what_is_missing(tmp_path, capsys):
     runs, out = tmp_path / 'runs', tmp_path / 'figures'
     (runs / 'adapt' / 'discocyte').mkdir(parents=True)

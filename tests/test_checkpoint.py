@@ -18,7 +18,6 @@ import pytest
 from pfmembrane.io import checkpoint
 from pfmembrane.io.checkpoint import CheckpointError
 
-ROOT = Path(__file__).resolve().parents[1]
 BOX = (1.0, 2.0)
 TIMEOUT = 60
 
@@ -46,13 +45,6 @@ def assert_state(ckpt, state):
     np.testing.assert_array_equal(ckpt.nodes, nodes)
     np.testing.assert_array_equal(ckpt.phi, phi)
     assert ckpt.attrs["energy"] == attrs["energy"]
-
-
-def subprocess_env():
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(ROOT)] + [p for p in [env.get("PYTHONPATH")] if p])
-    return env
 
 
 # --------------------------------------------------------------- round trip
@@ -202,7 +194,8 @@ def save_state(path, state):
     np.savez(path, nodes=nodes, phi=phi, **attrs)
 
 
-def test_sigkill_before_replace_keeps_previous_file(tmp_path):
+@pytest.mark.slow
+def test_sigkill_before_replace_keeps_previous_file(tmp_path, child_env):
     path = tmp_path / "state.h5"
     old = make_state(seed=1)
     checkpoint.write(path, *old)
@@ -211,7 +204,7 @@ def test_sigkill_before_replace_keeps_previous_file(tmp_path):
     with subprocess.Popen(
             [sys.executable, "-c", KILL_AT_FSYNC, str(path),
              str(tmp_path / "new.npz")],
-            stdout=subprocess.PIPE, text=True, env=subprocess_env()) as proc:
+            stdout=subprocess.PIPE, text=True, env=child_env) as proc:
         try:
             assert proc.stdout.readline() == "fsync\n"
         finally:
@@ -246,14 +239,15 @@ for step in range(10**6):
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("delay", [0.0, 0.05, 0.13, 0.29])
-def test_sigkill_while_writing_large_files(tmp_path, delay):
+def test_sigkill_while_writing_large_files(tmp_path, delay, child_env):
     path = tmp_path / "state.h5"
     n = 500_000
 
     with subprocess.Popen(
             [sys.executable, "-c", WRITE_FOREVER, str(path), str(n)],
-            stdout=subprocess.PIPE, text=True, env=subprocess_env()) as proc:
+            stdout=subprocess.PIPE, text=True, env=child_env) as proc:
         try:
             assert proc.stdout.readline() == "0\n"
             time.sleep(delay)
@@ -413,39 +407,29 @@ say(f"rank {rank} done")
 """
 
 
-def run_mpi(tmp_path, *args):
-    """Run MPI_SCRIPT on two ranks; a hang fails the test instead of
-    blocking it."""
-    if shutil.which("mpiexec") is None:
-        pytest.skip("mpiexec not found")
-    pytest.importorskip("mpi4py")
-    script = tmp_path / "mpi_script.py"
-    script.write_text(textwrap.dedent(MPI_SCRIPT))
-    env = subprocess_env()
-    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    proc = subprocess.Popen(
-        ["mpiexec", "-n", "2", sys.executable, str(script), *map(str, args)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-        start_new_session=True)
-    try:
-        _, err = proc.communicate(timeout=TIMEOUT)
-    except subprocess.TimeoutExpired:
-        # mpiexec takes its ranks down on SIGTERM; they run in process
-        # groups of their own, out of reach of a signal to its group.
-        proc.terminate()
+@pytest.fixture
+def run_mpi(mpiexec):
+    """run_mpi(tmp_path, *args): run MPI_SCRIPT on two ranks; a hang fails
+    the test instead of blocking it."""
+    def run(tmp_path, *args):
+        if shutil.which("mpiexec") is None:
+            pytest.skip("mpiexec not found")
+        pytest.importorskip("mpi4py")
+        script = tmp_path / "mpi_script.py"
+        script.write_text(textwrap.dedent(MPI_SCRIPT))
         try:
-            proc.communicate(timeout=10)
+            proc = mpiexec(script, *args, timeout=TIMEOUT)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-        pytest.fail(f"mpiexec {' '.join(map(str, args))} hung")
-    lines = [line for log in sorted(tmp_path.glob("rank*.log"))
-             for line in log.read_text().splitlines()]
-    return proc.returncode, lines, err
+            pytest.fail(f"mpiexec {' '.join(map(str, args))} hung")
+        lines = [line for log in sorted(tmp_path.glob("rank*.log"))
+                 for line in log.read_text().splitlines()]
+        return proc.returncode, lines, proc.stderr
+    return run
 
 
-def test_mpi_write_then_serial_read(tmp_path):
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_mpi_write_then_serial_read(tmp_path, run_mpi):
     path = tmp_path / "state.h5"
     state = make_state()
     save_state(tmp_path / "state.npz", state)
@@ -463,11 +447,13 @@ def test_mpi_write_then_serial_read(tmp_path):
     assert ckpt.attrs["n_procs"] == 2
 
 
+@pytest.mark.slow
+@pytest.mark.mpi
 @pytest.mark.parametrize("task, reason", [
     ("read", "cannot read checkpoint {path}: no such file"),
     ("write", "cannot write checkpoint {path}: "),
 ])
-def test_mpi_failure_raises_on_every_rank(tmp_path, task, reason):
+def test_mpi_failure_raises_on_every_rank(tmp_path, task, reason, run_mpi):
     path = tmp_path / "absent" / "state.h5"
     save_state(tmp_path / "state.npz", make_state())
 

@@ -3,7 +3,6 @@ SIGTERM (real mpiexec runs)."""
 import os
 import signal
 import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import h5py
@@ -11,20 +10,13 @@ import numpy as np
 import pytest
 
 from pfmembrane.io import checkpoint
-from test_faults import MID_STAGE1, Run
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
-           OMPI_MCA_rmaps_base_oversubscribe='1', OMPI_MCA_btl_vader_single_copy_mechanism='none')
+pytestmark = pytest.mark.slow
+
 SMALL = ['-pf_nodes', '1000', '-pf_box', '0.8,1.0', '-pf_eps', '0.06']
 
 
-def pfm(*args, n=2, timeout=240):
-    cmd = ['mpiexec', '-n', str(n), sys.executable, '-m', 'pfmembrane', *args]
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=timeout)
-
-
-def test_help_lists_the_application_options():
+def test_help_lists_the_application_options(pfm):
     out = pfm('-help', n=1)
     assert out.returncode == 0
     for name in ('eps', 'k', 'c0', 'radius', 'reduced_volume', 'box', 'branch', 'nodes',
@@ -81,7 +73,7 @@ def bad_files(tmp):
 
 
 @pytest.fixture(scope='module')
-def bad_runs(tmp_path_factory):
+def bad_runs(tmp_path_factory, pfm):
     """Every BAD_INPUT case, four at a time: the runs spend most of their time
     starting up and shutting down."""
     tmp = tmp_path_factory.mktemp('bad')
@@ -98,6 +90,7 @@ def bad_runs(tmp_path_factory):
         return {case: run.result() for case, run in runs.items()}
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize('case', BAD_INPUT)
 def test_bad_input_is_one_line_and_nonzero_on_every_rank(bad_runs, case):
     out, message = bad_runs[case], BAD_INPUT[case][1]
@@ -116,7 +109,7 @@ def _energy(path):
 
 
 @pytest.fixture(scope='module')
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, pfm):
     d = tmp_path_factory.mktemp('cli')
     res = {}
     for n in (1, 2, 3):  # 3 ranks oversubscribe the 2 cores: a partition that is not a power of 2
@@ -127,6 +120,7 @@ def runs(tmp_path_factory):
     return d, res
 
 
+@pytest.mark.mpi
 def test_one_two_and_three_ranks_agree(runs):
     _, res = runs
     a1, phi1 = _energy(res[1])
@@ -147,7 +141,8 @@ def test_one_two_and_three_ranks_agree(runs):
     assert a2['nu_area'] > 0 and a2['nu_volume'] < 0
 
 
-def test_restart_reaches_the_same_answer(runs):
+@pytest.mark.mpi
+def test_restart_reaches_the_same_answer(runs, pfm):
     d, res = runs
     path = str(d / 'restarted.h5')
     out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', res[2],
@@ -158,7 +153,8 @@ def test_restart_reaches_the_same_answer(runs):
     assert a['stage1_iterations'] <= 3  # it starts at the answer
 
 
-def test_adapted_restart_at_a_smaller_eps(runs):
+@pytest.mark.mpi
+def test_adapted_restart_at_a_smaller_eps(runs, pfm):
     # CVT relocation of the restart's nodes, its phi transferred and narrowed to the new eps.
     d, res = runs
     path = str(d / 'adapted.h5')
@@ -174,7 +170,8 @@ def test_adapted_restart_at_a_smaller_eps(runs):
     assert a['energy'] < start['energy']  # a thinner interface, the sharp limit below
 
 
-def test_a_restart_at_a_smaller_eps_keeps_its_multipliers(tmp_path):
+@pytest.mark.mpi
+def test_a_restart_at_a_smaller_eps_keeps_its_multipliers(tmp_path, pfm):
     # The solved multipliers start stage 1 and its first pass converges before the
     # update: one outer iteration, the multipliers already at the answer's. The
     # least-squares start took two, through nu_A 34 (answer 11.6).
@@ -192,7 +189,7 @@ def test_a_restart_at_a_smaller_eps_keeps_its_multipliers(tmp_path):
     assert abs(float(row[row.index('nuV') + 1]) / a['nu_volume'] - 1) < 1e-3
 
 
-def test_a_failed_stage_2_keeps_the_better_of_its_start_and_end(tmp_path):
+def test_a_failed_stage_2_keeps_the_better_of_its_start_and_end(tmp_path, pfm):
     # Steps of three times Newton's from a coarse stage 1 raise |F|: the checkpoint
     # holds the stage-1 state, not the last step.
     path = str(tmp_path / 'failed.h5')
@@ -208,12 +205,14 @@ def test_a_failed_stage_2_keeps_the_better_of_its_start_and_end(tmp_path):
     assert abs(a['energy'] - stage1) < 1e-7
 
 
-def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy(runs, tmp_path):
+@pytest.mark.mpi
+def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy(runs, tmp_path,
+                                                                                 pfm, mpirun):
     _, res = runs
     stopped = str(tmp_path / 'stopped.h5')
-    run = Run(['-options_file', 'options/discocyte.opts', *SMALL, '-pf_monitor',
-               '-pf_output', stopped])
-    run.wait_for(MID_STAGE1)
+    run = mpirun(['-options_file', 'options/discocyte.opts', *SMALL, '-pf_monitor',
+                  '-pf_output', stopped])
+    run.wait_for(run.MID_STAGE1)
     # Rank 0, which writes the checkpoint, learns of the signal from the poll.
     run.signal_ranks(signal.SIGTERM, ranks=(1,))
     status, out, err = run.finish()
@@ -236,7 +235,8 @@ def test_sigterm_on_one_rank_checkpoints_and_the_restart_reaches_the_same_energy
     assert abs(b['energy'] / _energy(res[2])[0]['energy'] - 1) < 1e-8
 
 
-def test_dumbbell_options_file_runs(tmp_path):
+@pytest.mark.mpi
+def test_dumbbell_options_file_runs(tmp_path, pfm):
     path = str(tmp_path / 'dumb.h5')
     out = pfm('-options_file', 'options/dumbbell.opts', '-pf_nodes', '1200', '-pf_box', '0.6,2.0',
               '-pf_eps', '0.06', '-pf_output', path)
@@ -250,9 +250,10 @@ def test_dumbbell_options_file_runs(tmp_path):
     assert a['converged'] == 1
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize('extra, status', [([], 2), (['-options_left'], 0)],
                          ids=['refused', 'options_left'])
-def test_an_unused_option_is_refused_after_the_run(runs, tmp_path, extra, status):
+def test_an_unused_option_is_refused_after_the_run(runs, tmp_path, extra, status, pfm):
     _, res = runs
     path = str(tmp_path / 'unused.h5')
     out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', res[2],
@@ -266,7 +267,8 @@ def test_an_unused_option_is_refused_after_the_run(runs, tmp_path, extra, status
     assert _energy(path)[0]['converged'] == 1  # the result itself is kept
 
 
-def test_half_box_solve_equals_the_full_box(tmp_path):
+@pytest.mark.mpi
+def test_half_box_solve_equals_the_full_box(tmp_path, pfm):
     """The mirror plane z = Zb/2 and no moment constraint: on a lattice that is
     its own mirror image, the same energy and multipliers from half the nodes."""
     scene = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '1100', '-pf_eps', '0.07']
@@ -284,7 +286,8 @@ def test_half_box_solve_equals_the_full_box(tmp_path):
     assert half['moment'] == 0.0 and half['nu_moment'] == 0.0
 
 
-def test_a_tight_box_is_reported_and_an_auto_restart_keeps_its_box(tmp_path):
+@pytest.mark.mpi
+def test_a_tight_box_is_reported_and_an_auto_restart_keeps_its_box(tmp_path, pfm):
     tight, again = str(tmp_path / 'tight.h5'), str(tmp_path / 'again.h5')
     scene = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '600', '-pf_eps', '0.06']
     out = pfm(*scene, '-pf_box', '0.7,0.8', '-pf_output', tight)

@@ -88,7 +88,8 @@ SADDLE_X, SADDLE_Y = np.linspace(-2.05, 2.1, 90), np.linspace(-2.1, 2.02, 85)
 
 @pytest.mark.parametrize("F, count", [
     (field(lambda x, y: np.sin(3 * x) * np.sin(3 * y), SADDLE_X, SADDLE_Y), 10),
-    (np.random.default_rng(0).standard_normal((85, 90)), None),
+    pytest.param(np.random.default_rng(0).standard_normal((85, 90)), None,
+                 marks=pytest.mark.slow),
 ])
 def test_saddles_are_resolved_as_by_matplotlib(F, count):
     inside = F > 0.0

@@ -2,15 +2,10 @@
 runs, and the verdicts and table cells of synthetic rows."""
 import json
 import math
-import os
 
 import pytest
 
 from pfmembrane.studies import extremes
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ENV = {'OMPI_ALLOW_RUN_AS_ROOT': '1', 'OMPI_ALLOW_RUN_AS_ROOT_CONFIRM': '1',
-       'OMPI_MCA_rmaps_base_oversubscribe': '1', 'OMPI_MCA_btl_vader_single_copy_mechanism': 'none'}
 
 
 def table_rows(path):
@@ -22,14 +17,8 @@ def table_rows(path):
     return {row[0]: dict(zip(extremes.HEADER, row)) for row in rows}
 
 
-@pytest.fixture
-def in_root(monkeypatch):
-    """The driver names options files relative to the project root."""
-    monkeypatch.chdir(ROOT)
-    for key, value in ENV.items():
-        monkeypatch.setenv(key, value)
-
-
+@pytest.mark.slow
+@pytest.mark.mpi
 def test_refused_and_tiny_cases(tmp_path, in_root):
     # eps0.04: below the 3000-node grid's eps_min, refused after the grid is built;
     # box-tight: 936 nodes, a few seconds of solves, the membrane against the box.
@@ -65,6 +54,8 @@ def test_refused_and_tiny_cases(tmp_path, in_root):
     assert json.loads((tmp_path / 'box-tight.json').read_text())['status'] == 0
 
 
+@pytest.mark.slow
+@pytest.mark.mpi
 def test_a_run_past_its_time_limit_is_stopped_and_reported(tmp_path, in_root):
     status = extremes.main(['--out', str(tmp_path), '--only', 'box-tight', '--timeout', '1'])
     assert status == 1   # box-dependent expected, a failure found

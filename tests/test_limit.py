@@ -181,6 +181,7 @@ def test_compare_names_a_missing_attribute(sphere):
         limit.compare(stripped)
 
 
+@pytest.mark.slow
 def test_cli_writes_report_and_figure(tmp_path):
     eps = [0.06, 0.05, 0.04]
     paths = []

@@ -1,10 +1,5 @@
 """Tests of pfmembrane.analysis.plot on synthetic checkpoints of an ellipse."""
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -17,7 +12,6 @@ import pytest  # noqa: E402
 from pfmembrane.io import checkpoint
 from pfmembrane.analysis import limit, plot  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 BOX = (1.0, 2.0)
 A, B, ZC = 0.5, 0.8, 1.0  # semi-axes along r and z, centre height
 TIMEOUT = 60
@@ -55,13 +49,14 @@ def pair(tmp_path):
     return paths, ckpts
 
 
-def run_plot(*args, cwd=None):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(ROOT)] + [p for p in [env.get("PYTHONPATH")] if p])
-    return subprocess.run([sys.executable, "-m", "pfmembrane.analysis.plot",
-                           *map(str, args)], capture_output=True, text=True,
-                          env=env, cwd=cwd, timeout=TIMEOUT)
+@pytest.fixture
+def run_plot(python):
+    """`python -m pfmembrane.analysis.plot ARGS...`, in `cwd` (None: this
+    process's working directory)."""
+    def run(*args, cwd=None):
+        return python("-m", "pfmembrane.analysis.plot", *args, cwd=cwd,
+                      timeout=TIMEOUT)
+    return run
 
 
 def assert_picture(path, min_bytes=10_000):
@@ -72,7 +67,8 @@ def assert_picture(path, min_bytes=10_000):
     assert len(colours) > 20, path
 
 
-def test_cli_writes_every_figure(pair, tmp_path):
+@pytest.mark.slow
+def test_cli_writes_every_figure(pair, tmp_path, run_plot):
     paths, _ = pair
     outdir = tmp_path / "figures"
 
@@ -89,10 +85,11 @@ def test_cli_writes_every_figure(pair, tmp_path):
         assert_picture(path, min_bytes=5_000)
 
 
-def test_cli_selected_figures_beside_checkpoint(pair, tmp_path):
+@pytest.mark.slow
+def test_cli_selected_figures_beside_checkpoint(pair, tmp_path, run_plot, root):
     paths, _ = pair
 
-    result = run_plot(paths[1], "--what", "section,field", cwd=ROOT)
+    result = run_plot(paths[1], "--what", "section,field", cwd=root)
 
     assert result.returncode == 0, result.stderr
     written = [tmp_path / "thick_section.png", tmp_path / "thick_field.png"]
@@ -103,7 +100,8 @@ def test_cli_selected_figures_beside_checkpoint(pair, tmp_path):
         assert_picture(path)
 
 
-def test_cli_rejects_unknown_figure(pair):
+@pytest.mark.slow
+def test_cli_rejects_unknown_figure(pair, run_plot):
     paths, _ = pair
 
     result = run_plot(paths[0], "--what", "field,movie")
@@ -112,7 +110,8 @@ def test_cli_rejects_unknown_figure(pair):
     assert "unknown figure movie" in result.stderr
 
 
-def test_cli_reports_unreadable_checkpoint(tmp_path):
+@pytest.mark.slow
+def test_cli_reports_unreadable_checkpoint(tmp_path, run_plot):
     bad = tmp_path / "bad.h5"
     bad.write_text("not a checkpoint")
 

@@ -2,10 +2,12 @@
 (`-stage1_tao_test_gradient`), on two ranks."""
 import re
 
-from test_cli import pfm
+import pytest
+
+pytestmark = [pytest.mark.slow, pytest.mark.mpi]
 
 
-def test_tao_test_gradient_agrees_with_the_hand_coded_gradient(tmp_path):
+def test_tao_test_gradient_agrees_with_the_hand_coded_gradient(tmp_path, pfm):
     out = pfm('-options_file', 'options/discocyte.opts', '-pf_nodes', '400', '-pf_box', '0.9,1.2',
               '-pf_eps', '0.1', '-pf_force', '-pf_stage1', 'tao', '-stage1_tao_test_gradient',
               '-stage1_tao_max_it', '1', '-pf_stage1_max_it', '1',

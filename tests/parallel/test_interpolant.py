@@ -3,6 +3,7 @@
 Collective: runs on one rank under pytest and on two under `mpiexec -n 2`.
 """
 import numpy as np
+import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.integrate import quad
@@ -42,6 +43,7 @@ def sampled(n):
     return grid, P, x
 
 
+@pytest.mark.slow
 def test_sphere_area_and_volume_converge_at_second_order():
     A, V = exact_area_volume()
     errors = []
