@@ -23,7 +23,7 @@ def test_ranks_agree_with_one_rank(scene):
     assert np.allclose(many.phi, one.phi, atol=1e-7)
     # every rank holds the whole result
     energies = PETSc.COMM_WORLD.tompi4py().allgather(many.energy)
-    assert energies[0] == energies[1]
+    assert len(set(energies)) == 1
 
 
 def test_a_grid_serves_eps_and_volume_steps():
