@@ -8,7 +8,8 @@ from pfmembrane.kernels.initial import rescaled_phi, spheroid_area, spheroid_axe
 BOX = (1.5, 2.0)
 
 
-@pytest.mark.parametrize("n, hbar", [(6124, 0.024), (12271, 0.017), (24597, 0.012)])
+@pytest.mark.parametrize("n, hbar", [(6124, 0.024), (12271, 0.017),
+                                     pytest.param(24597, 0.012, marks=pytest.mark.slow)])
 def test_uniform_grids_match_the_paper(n, hbar):
     x = nodes.uniform(BOX, n)
     assert abs(len(x) - n) < 0.01 * n

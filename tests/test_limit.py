@@ -233,6 +233,7 @@ def sharp_checkpoint(path, eps, n):
     return checkpoint.read(path), shape.energy
 
 
+@pytest.mark.slow
 def test_level_set_energy_is_the_sharp_energy_to_second_order(tmp_path):
     ckpt, e_sharp = sharp_checkpoint(tmp_path / "disc.h5", eps=0.03, n=4000)
 

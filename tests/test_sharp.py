@@ -35,7 +35,8 @@ def test_literature_energy_at_v08(branch):
     assert abs(shape.energy / LITERATURE[branch] - 1) < 1e-5
 
 
-@pytest.mark.parametrize('branch, v', [('oblate', 0.8), ('prolate', 0.8), ('stomatocyte', 0.6)])
+@pytest.mark.parametrize('branch, v', [('oblate', 0.8), ('prolate', 0.8),
+                                       pytest.param('stomatocyte', 0.6, marks=pytest.mark.slow)])
 def test_constraints_hold(branch, v):
     shape = solve(v, branch, radius=R0)
     assert abs(shape.area / (4 * np.pi * R0 ** 2) - 1) < 1e-10
@@ -107,6 +108,7 @@ def test_spontaneous_curvature_scales_with_radius_and_k():
     assert unit.energy < solve(0.8, 'prolate').energy
 
 
+@pytest.mark.slow
 def test_stomatocyte_v055():
     shape = solve(0.55, 'stomatocyte', radius=R0)
     # n-converged value (n = 192 and the default agree to 1e-12, validation.md).
@@ -120,6 +122,7 @@ def test_stomatocyte_v055():
     assert shape.z[0] == shape.z.min() and shape.z[-1] < shape.z.max() - 0.5 * R0
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings('ignore:.*not resolved')
 def test_stomatocyte_branch_ends():
     with pytest.raises(RuntimeError, match='stomatocyte'):

@@ -7,6 +7,7 @@ from petsc4py import PETSc
 
 import pfmembrane as pf
 
+pytestmark = pytest.mark.slow
 SCENE = pf.Scene(reduced_volume=0.8, branch='oblate')
 HALF = pf.Scene(reduced_volume=0.8, branch='oblate', symmetric=True)
 

@@ -87,6 +87,7 @@ def test_axis_is_a_symmetry_line():
     assert np.abs(ratios[0] - ratios[2]).max() < 0.1 * (np.abs(ratios[2]).max() + 1)
 
 
+@pytest.mark.slow
 def test_laplacian_near_the_axis_is_as_accurate_as_inside():
     """Lap = u_rr + u_r / r + u_zz of a smooth even field: no loss of accuracy at r -> 0."""
     xy = nodes.uniform(BOX, 2400)
