@@ -14,7 +14,7 @@ DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-sci
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-fast test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 bench bench-basis bench-scenes branches figures extremes clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 bench bench-basis bench-scenes branches figures extremes limits clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -37,6 +37,7 @@ help:
 	@echo "make branches  oblate and prolate branches, v = 0.95 -> 0.65 (Figure 6), runs/branches/"
 	@echo "make figures  the README's figures from existing checkpoints, runs/figures/index.md"
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
+	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, slepc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
@@ -141,6 +142,9 @@ figures: install
 
 extremes: install
 	$(PY) -m pfmembrane.studies.extremes --np $(NP) --out runs/extremes
+
+limits: install
+	$(PY) -m pfmembrane.studies.limits --np $(NP) --out runs/limits
 
 clean:
 	rm -rf $(VENV) runs/check.h5

@@ -9,7 +9,8 @@ Helfrich model on local max-ent approximants, solved with PETSc.
 The names below come from `pfmembrane.api`, imported on first use so that
 `python -m pfmembrane` starts PETSc before any numerical code loads.
 """
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict']
+__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
+           'stability']
 
 
 def __getattr__(name):

@@ -15,6 +15,7 @@ import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,10 +23,11 @@ from pfmembrane.io import checkpoint, options as appoptions
 from pfmembrane.io.options import Params, Targets
 from pfmembrane.kernels import adapt as adaptivity, nodes as nodesets
 from pfmembrane.kernels.basis import locality
-from pfmembrane.kernels.initial import rescaled_phi, spheroid_phi
+from pfmembrane.kernels import initial
 from pfmembrane.kernels.nodes import spacing_peak
 
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict']
+__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
+           'stability']
 
 # eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
 # distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
@@ -36,6 +38,9 @@ RESOLUTION = 1.5
 ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
 LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
+# Resampling of a sharp start's curve, in eps: its distances err by less than
+# 1/64 eps on the membrane, 1% of the tanh profile's slope.
+CURVE_SPACING = 1.0 / 32
 
 
 def petsc(args=None):
@@ -94,9 +99,10 @@ class Scene(Targets):
             return self
         from pfmembrane.analysis.sizing import auto_box
         unbounded = SimpleNamespace(**{f: getattr(self, f) for f in
-                                       ('radius', 'reduced_volume', 'branch', 'area', 'volume')},
+                                       ('radius', 'reduced_volume', 'branch', 'area', 'volume',
+                                        'c0', 'k')},
                                     box=(math.inf, math.inf))
-        appoptions.check_fits(unbounded, eps)  # refuses a scene without a spheroid
+        appoptions.check_fits(unbounded, eps)  # refuses a scene without a start
         return replace(self, box=auto_box(self.branch, self.reduced_volume, eps, self.radius,
                                           self.c0, self.k))
 
@@ -285,6 +291,107 @@ def predict(older, newer, ratio=1.0):
     return Result(newer.nodes, phi, attrs, grid=newer.grid, path=newer.path)
 
 
+class Tangent(NamedTuple):
+    """d(phi, nu)/dp along a branch: `phi` nodal (0 on the Dirichlet nodes)."""
+    parameter: str
+    phi: np.ndarray
+    nu: np.ndarray
+
+
+# Scene parameters a branch can follow. F is affine in V0 and A0 and quadratic in
+# C0 (grad E is linear in W, W affine in C0), so a central difference is exact.
+CONTINUATION = ('reduced_volume', 'c0', 'radius')
+DP = 1e-3
+
+
+def tangent(result, parameter='reduced_volume', options=None, prefix=None):
+    """The tangent of `result`'s branch in a scene parameter (`CONTINUATION`):
+    one Jacobian factorization at the converged state (`Solver.tangent`).
+    Collective on the result's grid. `options` as for `solve` (the factorization
+    reads `stage2_` options under the prefix)."""
+    from pfmembrane.parallel.assembly import Problem
+    from pfmembrane.parallel.solver import Solver
+    if parameter not in CONTINUATION:
+        raise ValueError(f"no continuation in {parameter!r}: one of {', '.join(CONTINUATION)}")
+    if result.grid is None or not result.converged:
+        raise ValueError("tangent needs a converged result on its grid (a solve's)")
+    PETSc, grid, scene = petsc(), result.grid, result.scene
+    lay = grid.discrete.layout
+    prefix = f"pf{next(_solve_count)}_" if prefix is None else prefix
+
+    def problem(s):
+        return Problem(grid.discrete, result.eps, s.k, s.c0, (s.area, s.volume), s.zc)
+
+    value = getattr(scene, parameter)
+    ends = [problem(replace(scene, **{parameter: value + d})) for d in (DP, -DP)]
+    P = problem(scene)
+    x = P.create_vec()
+    x.setArray(result.phi[lay.order[lay.start:lay.start + lay.nowned]])
+    grads = [x.duplicate() for _ in ends]
+    for end, g in zip(ends, grads):
+        end.gradients(x, g, x.duplicate())
+    grads[0].axpy(-1.0, grads[1])
+    grads[0].scale(0.5 / DP)
+    with _options(options, prefix):
+        solver = Solver(P, appoptions.read_settings(PETSc.Options(), prefix), prefix)
+        solver.nu = result.nu
+        dx, dnu = solver.tangent(x, grads[0], (ends[0].targets - ends[1].targets) / (2 * DP))
+        solver.destroy()
+        for key in solver.defaults:
+            PETSc.Options().delValue(key)
+    values = lay.gather(dx)
+    phi = grid.comm.tompi4py().bcast(None if values is None else _nodal(grid, values, 0.0),
+                                     root=0)
+    return Tangent(parameter, phi, dnu)
+
+
+def along(result, tangent, step):
+    """The Euler predictor of a continuation: `result` moved by `step` in the
+    tangent's parameter, a start for the solve there (on `result`'s grid)."""
+    phi = result.phi + step * tangent.phi
+    nu = result.nu + step * tangent.nu
+    attrs = {**result.attrs, **dict(zip(MULTIPLIERS, nu)), 'converged': 1,
+             tangent.parameter: float(result.attrs[tangent.parameter]) + step}
+    return Result(result.nodes, phi, attrs, grid=result.grid, path=result.path)
+
+
+def stability(result, modes=6, nev=3, prefix='modes_', grid=None):
+    """The azimuthal stability of an axisymmetric `result` against
+    perturbations psi(r, z) cos(m theta), m = 0 ... `modes`
+    (`parallel.modes`). Collective on the grid's communicator (`grid`, else
+    the result's, else one rebuilt from its nodes).
+
+    Returns one `parallel.modes.Spectrum` per m, its `vectors` as nodal chi
+    (psi = r^m chi_h) on every rank, and records in `result.attrs` the index
+    per m without the rigid motions (`index_m`) and the lowest eigenvalue per
+    m (`lowest_m`), which `save` writes to the checkpoint. The eigensolver
+    reads its options under `prefix` (`-modes_eps_tol`).
+    """
+    from pfmembrane.kernels.modes import RIGID
+    from pfmembrane.parallel.modes import ModeAnalysis
+    grid = grid or result.grid or Grid.of(result)
+    PETSc = petsc()
+    stage = PETSc.Log.Stage('pfModes')
+    stage.push()
+    analysis = ModeAnalysis(grid, result.scene, result.eps, result.phi, result.nu[0], nev,
+                            prefix)
+    try:
+        spectra = []
+        for m in range(modes + 1):
+            s = analysis.spectrum(m)
+            spectra.append(s._replace(vectors=[analysis.nodal(chi) for chi in s.vectors]))
+    finally:
+        analysis.destroy()
+        stage.pop()
+    result.attrs.update(
+        index_m=np.array([s.index - np.count_nonzero((s.rigid > RIGID) & (s.eigenvalues < 0))
+                          for s in spectra]),
+        lowest_m=np.array([min([v for v, r in zip(s.eigenvalues, s.rigid) if not r > RIGID],
+                               default=np.nan) for s in spectra]),
+        time_modes=sum(s.time for s in spectra))
+    return spectra
+
+
 _solve_count = itertools.count(1)
 
 
@@ -322,13 +429,16 @@ def _options(given, prefix):
                 db.setValue(full, old)
 
 
-def _start_phi(scene, grid, eps, start):
-    """Nodal phi of the start at every node (a spheroid of the scene's branch,
-    or `start`'s phi_h on this grid, its tanh profile rescaled to `eps`), the
-    start's multipliers (None for a spheroid) and whether it was solved."""
+def _start_phi(scene, grid, eps, start, shape='auto'):
+    """Nodal phi of the start at every node (the scene's initial `shape`, the
+    -pf_start choice, or `start`'s phi_h on this grid, its tanh profile
+    rescaled to `eps`), the start's multipliers (None for a fresh start) and
+    whether it was solved."""
     if start is None:
-        a, c = appoptions.check_fits(scene, eps)
-        return spheroid_phi(grid.nodes, a, c, scene.zc, eps), None, False
+        kind, geometry = appoptions.check_fits(scene, eps, shape)
+        if kind == 'sharp':
+            kind, geometry = appoptions.check_fits(scene, eps, shape, _sharp_curve(scene))
+        return _fresh_phi(grid.nodes, kind, geometry, scene.zc, eps), None, False
     if start.attrs.get('symmetric', 0) != grid.symmetric:
         raise appoptions.UsageError(
             f"the start {start.path or ''} holds a "
@@ -345,18 +455,44 @@ def _start_phi(scene, grid, eps, start):
                         grid.plane)
         phi = adaptivity.transfer(start.nodes, start.phi, beta, float(a.get('cutoff', 1e-6)),
                                   grid.nodes, grid.box, grid.plane)
-    return rescaled_phi(phi, start.eps, eps), start.nu, start.converged
+    return initial.rescaled_phi(phi, start.eps, eps), start.nu, start.converged
+
+
+def _sharp_curve(scene):
+    """The generating curve (r, z) of the scene's sharp-interface shape about
+    its centroid (computed once per process: `analysis.limit.reference`)."""
+    from pfmembrane.analysis.limit import reference
+    try:
+        sharp = reference(scene.branch, scene.reduced_volume, scene.c0, scene.radius, scene.k)
+    except RuntimeError as e:
+        raise appoptions.UsageError(f"-pf_start sharp: no sharp-interface {scene.branch} "
+                                    f"shape for v = {scene.reduced_volume:g}, C0 = "
+                                    f"{scene.c0:g} ({e})") from None
+    return np.asarray(sharp.r), np.asarray(sharp.z)
+
+
+def _fresh_phi(points, kind, geometry, zc, eps):
+    """phi at `points` of a fresh start of `kind` (`io.options.check_fits`)."""
+    if kind == 'spheroid':
+        return initial.spheroid_phi(points, *geometry, zc, eps)
+    if kind == 'torus':
+        return initial.profile(initial.torus_distance(points, *geometry, zc), eps)
+    if kind == 'spheres':
+        return initial.profile(initial.spheres_distance(points, *geometry, zc), eps)
+    r, z = geometry  # the sharp curve about its centroid: placed at zc, where M = 0 holds it
+    return initial.profile(initial.curve_distance(points, r, z + zc, CURVE_SPACING * eps), eps)
 
 
 def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
     """The equilibrium shape of `scene` on `grid` at width `eps`. Collective.
 
-    Starts from the scene's spheroid, or from `start` (a `Result`: on this
-    grid, read from a file, or the parent of an adapted grid). `options` maps
+    Starts from the scene's initial shape (option `pf_start`,
+    `io.options.STARTS`), or from `start` (a `Result`: on this grid, read from
+    a file, or the parent of an adapted grid). `options` maps
     command-line names without the dash to values, PETSc's (`stage2_snes_monitor`,
     `stage1_tao_type`) and the solver's own (`pf_stage1`, `pf_mu`,
     `pf_stage1_rtol`, `pf_stage1_max_it`, `pf_stage2_rtol`, `pf_monitor`,
-    `pf_force`); they live under the solve's options `prefix` (by default one
+    `pf_force`, `pf_start`); they live under the solve's options `prefix` (by default one
     of its own, so `-PREFIX...` on the command line reaches only this solve)
     and leave the database as they found it. `checks` compares the converged
     field with the sharp-interface shape (`analysis.limit.compare`).
@@ -384,7 +520,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
             raise appoptions.UsageError(
                 f"eps {eps:g} is below what this grid resolves (eps_min = {grid.eps_min:.4g}); "
                 "use more nodes, an adapted grid, or -pf_force to run anyway")
-        phi0, nu0, solved = _start_phi(scene, grid, eps, start)
+        phi0, nu0, solved = _start_phi(scene, grid, eps, start, settings.start)
         problem = Problem(grid.discrete, eps, scene.k, scene.c0, (scene.area, scene.volume),
                           scene.zc)
         x = problem.create_vec()
@@ -444,9 +580,10 @@ def _max():
     return MPI.MAX
 
 
-def _nodal(grid, values):
-    """Values by global number -> values at every node (Dirichlet nodes -1)."""
-    phi = np.full(grid.n_nodes, -1.0)
+def _nodal(grid, values, dirichlet=-1.0):
+    """Values by global number -> values at every node (`dirichlet` on the
+    Dirichlet nodes)."""
+    phi = np.full(grid.n_nodes, dirichlet)
     phi[grid.discrete.layout.order] = values
     return phi
 

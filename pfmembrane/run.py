@@ -87,6 +87,8 @@ def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=
              f"points, eps_min {grid.eps_min:.4g}, set-up {t_setup:.2f} s"
              f"{'' if fresh else ' (grid reused)'}")
     res = api.solve(scene, grid, p.eps, start=start, options=solve_options, prefix=prefix)
+    if p.modes >= 0 and res.converged:
+        api.stability(res, p.modes)
     # The run's own clocks: reading the restart and adapting count too.
     res.attrs.update(wall_time=time.perf_counter() - t_start, time_setup=t_setup,
                      parent=p.restart)
@@ -110,8 +112,8 @@ def solver_options(table):
 
 
 def summary(res, output, print_fn):
-    """The result line, and the box, topology and sharp-interface lines where
-    they apply; a topology other than the start's is flagged."""
+    """The result line, and the box, topology, sharp-interface and stability
+    lines where they apply; a topology other than the start's is flagged."""
     from pfmembrane.analysis.limit import BOUNDARY_TOL
     a = res.attrs
     print_fn(
@@ -138,3 +140,10 @@ def summary(res, output, print_fn):
             + (f"; the level set's own energy {a['level_set_energy']:.6f} "
                f"({100 * (a['level_set_energy'] / a['sharp_energy'] - 1):+.4f}%)"
                if np.isfinite(a['level_set_energy']) else ""))
+    if 'index_m' in a:
+        unstable = [m for m, i in enumerate(a['index_m']) if i > 0]
+        print_fn(f"stability: index per m = 0..{len(a['index_m']) - 1}: "
+                 f"{' '.join(map(str, a['index_m']))}, lowest eigenvalues "
+                 f"{' '.join(format(v, '.4g') for v in a['lowest_m'])} "
+                 + (f"(UNSTABLE to m = {', '.join(map(str, unstable))})" if unstable
+                    else "(stable)") + f", {a['time_modes']:.2f} s")

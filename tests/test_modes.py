@@ -207,3 +207,32 @@ def test_the_lowest_m1_modes_are_the_lateral_translation_and_rotation(solved, fi
             coef = np.linalg.solve((modes * w) @ modes.T, modes @ (w * motion))
             assert np.abs(motion - coef @ modes).max() < error
     assert largest[1] < 0.5 * largest[0]
+
+
+def test_stability_records_the_index_per_m_that_the_checkpoint_keeps(solved, tmp_path):
+    """pf.stability: per m the index of `spectrum` without the rigid motions, the lowest
+    non-rigid eigenvalue, both written by `save` and read back."""
+    from pfmembrane.kernels.modes import RIGID
+    spectra = pf.stability(solved, modes=2)
+    assert [s.m for s in spectra] == [0, 1, 2]
+    rigid = [(s.rigid > RIGID) for s in spectra]
+    assert list(solved.attrs['index_m']) == [
+        s.index - np.count_nonzero(r & (s.eigenvalues < 0)) for s, r in zip(spectra, rigid)]
+    assert list(solved.attrs['index_m']) == [0, 0, 1]          # the oblate v = 0.8: m = 2
+    np.testing.assert_allclose(solved.attrs['lowest_m'],
+                               [s.eigenvalues[~r].min() for s, r in zip(spectra, rigid)])
+    assert all(len(chi) == len(solved.nodes) for s in spectra for chi in s.vectors)
+    again = pf.read(solved.save(tmp_path / 'modes.h5').path)
+    assert list(again.attrs['index_m']) == [0, 0, 1]
+    np.testing.assert_array_equal(again.attrs['lowest_m'], solved.attrs['lowest_m'])
+
+
+def test_the_run_line_reports_and_checkpoints_the_index(pfm, tmp_path):
+    out = tmp_path / 'm.h5'
+    run = pfm('-options_file', 'options/discocyte.opts', '-pf_nodes', '1500', '-pf_eps',
+              f'{EPS:g}', '-pf_modes', '2', '-pf_output', out, n=1)
+    assert run.returncode == 0, run.stderr
+    line = [x for x in run.stdout.splitlines() if x.startswith('stability:')]
+    assert line and line[0].startswith('stability: index per m = 0..2: 0 0 1, lowest')
+    assert 'UNSTABLE to m = 2' in line[0]
+    assert list(pf.read(out).attrs['index_m']) == [0, 0, 1]

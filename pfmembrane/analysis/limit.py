@@ -41,7 +41,7 @@ BOUNDARY_TOL = 1e-3
 BOUNDARY_SAMPLES = 400
 
 __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "membrane", "level_set_energy",
-           "distance",
+           "loop_energy", "distance",
            "compare", "Extrapolation", "extrapolate", "main"]
 
 # Attributes a checkpoint needs, beyond nodes and phi, for `compare`.
@@ -269,6 +269,54 @@ def level_set_energy(ckpt, curve, field=None):
     target = reference(*_scene(attrs))
     return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], target.area, target.volume,
                               float(attrs["c0"]), float(attrs["k"]))
+
+
+LOOP_MODES = 48  # Fourier modes of the tangent angle in `loop_energy`
+
+
+def loop_energy(ckpt, piece, field=None, modes=LOOP_MODES):
+    """Canham-Helfrich energy (k/2) int (H - C0)^2 dA of the torus that a
+    closed level-set piece off the axis revolves into (`topology`: a torus).
+
+    Not collective. Unlike `level_set_energy` (one curve from the axis to the
+    axis), the piece is taken as it is, not put on the scene's constraints:
+    at C0 = 0 the energy depends on the reduced volume only, and at a
+    stationary shape (the Clifford torus) only to second order. The tangent
+    angle psi comes from grad phi_h, as there, smoothed by a Fourier series
+    of `modes` modes in arc length; H = (psi_s + sin psi / r) / 2 on the loop
+    turned counterclockwise (inside on the left).
+
+    Returns
+    -------
+    energy : float
+    radii : tuple of float
+        (tube, centre line): half the loop's width in r, and the mean of its
+        extreme r.
+    """
+    attrs = ckpt.attrs
+    points = piece[:-1] if np.allclose(piece[0], piece[-1]) else piece
+    r, z = points.T
+    if np.sum(r * np.roll(z, -1) - np.roll(r, -1) * z) < 0:  # clockwise: turn it
+        points = points[::-1]
+    _, grad = (PhaseField(ckpt) if field is None else field)(points, gradient=True)
+    seg = np.hypot(*np.diff(np.vstack([points, points[:1]]), axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    length, s = s[-1], s[:-1]
+    psi = np.unwrap(np.arctan2(-grad[:, 0], grad[:, 1]))
+    # psi gains 2 pi round the loop: fit the periodic rest.
+    t = 2.0 * np.pi * s / length
+    k = np.arange(1, modes + 1)
+    basis = np.hstack([np.ones((t.size, 1)), np.cos(np.outer(t, k)), np.sin(np.outer(t, k))])
+    coef = np.linalg.lstsq(basis, psi - t, rcond=None)[0]
+    slope = np.hstack([np.zeros((t.size, 1)), -k * np.sin(np.outer(t, k)),
+                       k * np.cos(np.outer(t, k))])
+    psi_s = (1.0 + slope @ coef) * 2.0 * np.pi / length
+    psi = t + basis @ coef
+    r = points[:, 0]
+    h = 0.5 * (psi_s + np.sin(psi) / r) - float(attrs["c0"])
+    ds = 0.5 * (seg + np.roll(seg, 1))  # trapezoid weights of the closed polyline
+    energy = np.pi * float(attrs["k"]) * np.sum(r * h * h * ds)
+    return float(energy), (0.5 * float(np.ptp(r)), 0.5 * float(r.max() + r.min()))
 
 
 def _raster_contour(field, box, step):

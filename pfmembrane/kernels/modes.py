@@ -46,6 +46,7 @@ from pfmembrane.kernels.functionals import F_A, F_E, Functionals
 # int cos^2(m theta) dtheta / (2 pi): the weights w already integrate 2 pi.
 THETA = lambda m: 1.0 if m == 0 else 0.5  # noqa: E731
 OPERATORS = ('B0', 'BL', 'Br', 'Bz')
+RIGID = 0.5  # a mode with more than this fraction of its norm in rigid motions is one
 
 
 def blocks(gram):

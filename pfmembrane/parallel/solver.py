@@ -307,6 +307,33 @@ class Solver:
                              "try a tighter stage 1 (-pf_stage1_rtol) or a finer grid")
         return vals, res
 
+    # -- continuation --------------------------------------------------------
+    def tangent(self, x, dgrad, dtargets):
+        """(dx, dnu): the derivative of the converged state (x, nu) along its
+        branch with respect to a scene parameter p, from J [dx; dnu] = -dF/dp,
+        J the stage-2 Jacobian at (x, nu) and F its residual. A change of p
+        moves F by `dgrad` (d grad E / dp, a Vec) in the gradient rows and by
+        `dtargets` (d c0 / dp) in the constraint rows."""
+        P = self.P
+        self.evaluate(x)
+        K = P.assemble_bordered(x, self.nu[0], self.C, 0.0)
+        ksp = PETSc.KSP().create(P.comm)
+        self._configure_direct(ksp, 'stage2_')
+        ksp.setFromOptions()
+        ksp.setOperators(K)
+        rhs, sol = K.createVecs()
+        nl, last = P.layout.nowned, P.comm.getRank() == P.comm.getSize() - 1
+        rhs.getArray()[:nl] = -dgrad.getArray(readonly=True)
+        if last:
+            rhs.getArray()[nl:] = -np.asarray(dtargets, dtype=float)
+        ksp.solve(rhs, sol)
+        self.factorizations += 1
+        dx = x.duplicate()
+        dx.setArray(sol.getArray(readonly=True)[:nl])
+        dnu = sol.getArray(readonly=True)[nl:].copy() if last else None
+        ksp.destroy()
+        return dx, np.asarray(self.mpi.bcast(dnu, root=P.comm.getSize() - 1))
+
     def destroy(self):
         """Free the PETSc objects kept between iterations."""
         for name in ('_ksp1', '_tao_obj'):

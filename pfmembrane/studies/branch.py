@@ -171,15 +171,16 @@ def run(branch, vs, box, args):
 def table(steps):
     """Markdown rows, one per step, and the sum of the runs' wall times."""
     rows = ['| v | start | E | nu_A | nu_V | max phi | its (1+2) | converged | E_sharp | error vs sharp '
-            '| d max | run s | wall s |',
-            '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            '| d max | topology | index per m | run s | wall s |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     total = 0.0
     for step in steps:
         a = _attrs(step['path']) if step['written'] else None
         start = os.path.basename(step['parent']) or 'spheroid'
         wall = 'reused' if step['wall'] is None else f"{step['wall']:.1f}"
         if a is None:
-            rows.append(f"| {step['v']:g} | {start} | no checkpoint |  |  |  |  | 0 |  |  |  |  | {wall} |")
+            rows.append(f"| {step['v']:g} | {start} | no checkpoint |  |  |  |  | 0 |  |  |  |  |  "
+                        f"|  | {wall} |")
             continue
         total += float(a['wall_time'])
         # A run whose phi_h has no zero level set has no sharp comparison.
@@ -188,7 +189,9 @@ def table(steps):
         rows.append(
             f"| {step['v']:g} | {start} | {a['energy']:.5f} | {a['nu_area']:.4f} | {a['nu_volume']:.3f} "
             f"| {a['max_phi']:.4f} | {iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} "
-            f"| {int(a['converged'])} | {' | '.join(compared)} | {a['wall_time']:.1f} | {wall} |")
+            f"| {int(a['converged'])} | {' | '.join(compared)} | {a.get('topology', '')} "
+            f"| {' '.join(map(str, a['index_m'])) if 'index_m' in a else ''} "
+            f"| {a['wall_time']:.1f} | {wall} |")
     return rows, total
 
 
@@ -217,7 +220,9 @@ def header(branch, vs, box, need, sizes, given, args):
         f"c = {sizes['spheroid'][1]:.4f}.\n\n"
         "E_sharp: the axisymmetric Canham-Helfrich shape of the same scene (checkpoint attribute "
         "`sharp_energy`); error vs sharp = (E - E_sharp) / E_sharp; d max: largest distance from "
-        "phi_h = 0 to the sharp curve (a jump to another branch shows here). run s: the step's "
+        "phi_h = 0 to the sharp curve (a jump to another branch shows here). index per m: the "
+        "negative eigenvalues of the second variation in each azimuthal mode m = 0, 1, ... "
+        "(`-pf_modes M`; rigid motions excluded), 0 everywhere for a stable shape. run s: the step's "
         "own wall time (grid set-up on the first); wall s: this invocation's, checkpoint included.\n\n"
         f"Regenerate: `python -m pfmembrane.studies.branch --branch {branch} --from {vs[0]:g} "
         f"--to {vs[-1]:g} --step {args.step:g} --out {args.out} --np {args.np} --eps {args.eps:g} "

@@ -35,31 +35,25 @@ import time
 
 import numpy as np
 
-RIGID = 0.5   # a mode with more than this fraction of its norm in rigid motions
+from pfmembrane.kernels.modes import RIGID
 
 
 def analyse(result, grid, modes, nev, say):
-    """The `Spectrum` of every m = 0 ... `modes`, printing a row each. Collective.
+    """The `Spectrum` of every m = 0 ... `modes` (`pf.stability`), printing a
+    row each. Collective.
 
-    Returns the spectra and a nodal chi (every rank) of the least stable mode
-    other than rigid motions, with its m and eigenvalue.
+    Returns the spectra and the least stable mode other than rigid motions:
+    its m, nodal chi (every rank) and eigenvalue (None, None, inf if none).
     """
-    from pfmembrane.parallel.modes import ModeAnalysis
-    analysis = ModeAnalysis(grid, result.scene, result.eps, result.phi, result.nu[0], nev)
-    spectra, least = [], (None, None, np.inf)
-    try:
-        for m in range(modes + 1):
-            s = analysis.spectrum(m)
-            spectra.append(s)
-            say(row(s))
-            for value, vector, rigid in zip(s.eigenvalues, s.vectors, s.rigid):
-                if not rigid > RIGID and value < least[2]:
-                    least = (m, vector, value)
-        m, vector, value = least
-        chi = analysis.nodal(vector) if vector is not None else None
-    finally:
-        analysis.destroy()
-    return spectra, (m, chi, value)
+    import pfmembrane as pf
+    spectra = pf.stability(result, modes, nev, grid=grid)
+    least = (None, None, np.inf)
+    for s in spectra:
+        say(row(s))
+        for value, chi, rigid in zip(s.eigenvalues, s.vectors, s.rigid):
+            if not rigid > RIGID and value < least[2]:
+                least = (s.m, chi, value)
+    return spectra, least
 
 
 def row(s):

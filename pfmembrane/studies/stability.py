@@ -1,0 +1,171 @@
+"""Azimuthal stability along branches: the index per mode m of every state.
+
+    python -m pfmembrane.studies.stability [--np 2] [--eps 0.04] [--nodes 6124] [--modes 6]
+        [--out runs/modes] [--series NAME ...] [-- SOLVER OPTIONS]
+
+Each series is a continuation in one process on one grid (`pf.solve` from the previous
+state, Newton on the bordered system first), and at each converged state `pf.stability`:
+the index per m = 0 ... M (negative eigenvalues of the second variation in psi(r, z)
+cos(m theta), rigid motions excluded) and the lowest eigenvalue per m. A series stops at
+its first failed solve. The series (`SERIES`): the prolate, oblate and stomatocyte branches
+at c0 = 0 for v = 0.95 ... 0.55, and the oblate branch in the reduced spontaneous curvature
+c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6. Writes OUT/branches.md (one table per series)
+and OUT/branches.png (the lowest eigenvalue of m = 2, 3, 4 along each series).
+"""
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from pfmembrane.io.options import BRANCHES
+from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.studies import launch
+
+RADIUS = 0.4
+VOLUMES = [round(0.95 - 0.05 * i, 2) for i in range(9)]
+CURVATURES = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5]   # reduced c0 = 2 C0 R
+# name: (branch, the parameter followed, its values, the other parameter's value)
+SERIES = {
+    'prolate': ('prolate', 'v', VOLUMES, 0.0),
+    'oblate': ('oblate', 'v', VOLUMES, 0.0),
+    'stomatocyte': ('stomatocyte', 'v', VOLUMES, 0.0),
+    **{f"oblate_v{v:g}": ('oblate', 'c0', CURVATURES, v) for v in (0.8, 0.7, 0.6)},
+}
+MARGIN = 3.0  # eps between every shape of a series and the box
+
+
+def scenes(name):
+    """(reduced volume, reduced c0) of each point of a series."""
+    _, parameter, values, other = SERIES[name]
+    return [(x, other) if parameter == 'v' else (other, x) for x in values]
+
+
+def box_of(branch, points, eps):
+    """One box for a series: every sharp shape and start of it with MARGIN eps."""
+    from pfmembrane.analysis.sizing import required_box
+    from pfmembrane.studies.branch import default_box
+    need = np.max([required_box(branch, [v], eps, RADIUS, c0 / (2 * RADIUS), margin=MARGIN)[0]
+                   for v, c0 in points], axis=0)
+    return default_box(tuple(need))
+
+
+def follow(name, args, say):
+    """Solve and analyse the points of one series in order. Collective."""
+    import pfmembrane as pf
+    branch = SERIES[name][0]
+    points = scenes(name)
+    box = box_of(branch, points, args.eps)
+    grid, previous, rows = None, None, []
+    for v, c0 in points:
+        scene = pf.Scene(reduced_volume=v, c0=c0 / (2 * RADIUS), radius=RADIUS, box=box,
+                         branch=branch)
+        # the paper box's spacing in every box
+        grid = grid or pf.Grid.uniform(scene, nodes=round(args.nodes * box[0] * box[1]
+                                                          / (PAPER_BOX[0] * PAPER_BOX[1])))
+        say(f"-- {name}: v {v:g} c0 {c0:g} (C0 {scene.c0:g}), box {box[0]:g}x{box[1]:g}")
+        t0 = time.perf_counter()
+        options = dict(args.solver, **({'pf_stage1': 'none'} if previous else {}))
+        res = pf.solve(scene, grid, args.eps, start=previous, options=options)
+        if not res.converged:
+            say(f"{name}: v {v:g} c0 {c0:g} did not converge ({res.message}); the series stops")
+            rows.append(dict(v=v, c0=c0, attrs=res.attrs, wall=time.perf_counter() - t0))
+            break
+        pf.stability(res, args.modes)
+        rows.append(dict(v=v, c0=c0, attrs=res.attrs, wall=time.perf_counter() - t0))
+        say(row(rows[-1]))
+        previous = res
+    return dict(name=name, branch=branch, box=box, nodes=grid.n_nodes if grid else 0, rows=rows)
+
+
+HEADER = ('| v | c0 | E | nu_A | nu_V | E level set | topology | its (1+2) | index per m '
+          '| lowest eigenvalue per m | modes s | s |')
+
+
+def row(r):
+    a = r['attrs']
+    if not a.get('converged'):
+        return f"| {r['v']:g} | {r['c0']:g} | not converged | | | | | | | | | {r['wall']:.1f} |"
+    its = '+'.join(str(i) if i >= 0 else '-' for i in (a['stage1_iterations'],
+                                                       a['stage2_iterations']))
+    level = a.get('level_set_energy', math.nan)
+    return (f"| {r['v']:g} | {r['c0']:g} | {a['energy']:.5f} | {a['nu_area']:.4f} "
+            f"| {a['nu_volume']:.3f} | {level:.5f} | {a.get('topology', '')} | {its} "
+            f"| {' '.join(map(str, a['index_m']))} "
+            f"| {' '.join(format(x, '.3g') for x in a['lowest_m'])} "
+            f"| {a['time_modes']:.1f} | {r['wall']:.1f} |")
+
+
+def write(results, args, out):
+    """OUT/branches.md and OUT/branches.png. Not collective."""
+    lines = ["# Azimuthal stability along branches\n",
+             f"eps {args.eps:g}, uniform grids of the spacing of {args.nodes} nodes in the paper box, R = {RADIUS:g}, "
+             f"m = 0 ... {args.modes}, {args.np} MPI ranks on {os.cpu_count()} cores. "
+             "c0 is the reduced spontaneous curvature 2 C0 R (SBL's). index per m: negative "
+             "eigenvalues of the second variation of E - nu . (c - c0) in the mode "
+             "psi(r, z) cos(m theta) (on the constraints' tangent space for m = 0), rigid "
+             "motions excluded; lowest eigenvalue per m: the least non-rigid one.\n",
+             f"Regenerate: `python -m pfmembrane.studies.stability --np {args.np} --eps "
+             f"{args.eps:g} --nodes {args.nodes} --modes {args.modes} --out {args.out}"
+             + (f" --series {' '.join(args.series)}" if args.series != list(SERIES) else '')
+             + "`.\n"]
+    for s in results:
+        lines += [f"\n## {s['name']}: the {s['branch']} branch, {SERIES[s['name']][1]} "
+                  f"followed\n", f"Box {s['box'][0]:g} x {s['box'][1]:g}, {s['nodes']} nodes.\n",
+                  HEADER, '|' + '---|' * (HEADER.count('|') - 1)] + [row(r) for r in s['rows']]
+    with open(os.path.join(out, 'branches.md'), 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for s in results:
+        kind = SERIES[s['name']][1]
+        ax = axes[0 if kind == 'v' else 1]
+        done = [r for r in s['rows'] if r['attrs'].get('converged')]
+        x = [r['v'] if kind == 'v' else r['c0'] for r in done]
+        for m, style in ((2, '-'), (3, '--'), (4, ':')):
+            if done and len(done[0]['attrs']['lowest_m']) > m:
+                ax.plot(x, [r['attrs']['lowest_m'][m] for r in done], style, marker='o',
+                        label=f"{s['name']} m = {m}")
+    for ax, label in zip(axes, ('reduced volume v (c0 = 0)', 'reduced c0 = 2 C0 R')):
+        ax.axhline(0.0, color='k', linewidth=0.8)
+        ax.set_yscale('symlog', linthresh=1.0)
+        ax.set_xlabel(label)
+        ax.set_ylabel('lowest eigenvalue of mode m')
+        if ax.lines:
+            ax.legend(fontsize=7)
+    fig.savefig(os.path.join(out, 'branches.png'), dpi=130, bbox_inches='tight')
+    plt.close(fig)
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.stability',
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument('--np', type=int, default=2, help='MPI ranks')
+    ap.add_argument('--eps', type=float, default=0.04)
+    ap.add_argument('--nodes', type=int, default=6124, help='nodes in the paper box (scaled)')
+    ap.add_argument('--modes', type=int, default=6, help='highest m')
+    ap.add_argument('--out', default=os.path.join('runs', 'modes'))
+    ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
+    ap.add_argument('options', nargs='*', metavar='-- OPTION')
+    args = ap.parse_args(argv)
+    args.series = [s for s in args.series if SERIES[s][0] in BRANCHES]
+    args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
+    launch.ensure_ranks(args.np, 'pfmembrane.studies.stability', sys.argv[1:])
+    import pfmembrane as pf
+    PETSc = pf.api.petsc(sys.argv[:1])
+    say = PETSc.Sys.Print
+    results = [follow(name, args, say) for name in args.series]
+    if PETSc.COMM_WORLD.getRank() == 0:
+        os.makedirs(args.out, exist_ok=True)
+        write(results, args, args.out)
+        print(os.path.join(args.out, 'branches.md'))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

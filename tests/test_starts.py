@@ -1,0 +1,153 @@
+"""Initial shapes of every family (kernels.initial, io.options.check_fits): their
+geometry, signed distances, the box and half-box checks, and -help."""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from pfmembrane.analysis.contour import zero_contour
+from pfmembrane.analysis.limit import enclosed_volume, topology
+from pfmembrane.io import options
+from pfmembrane.io.options import Params, UsageError
+from pfmembrane.kernels import initial
+
+R = 0.4
+CLIFFORD = 3.0 / (2.0 ** 1.25 * math.sqrt(math.pi))  # reduced volume of the Clifford torus
+
+
+def scene(**kw):
+    return Params(**{'radius': R, 'nodes': 1000, **kw})
+
+
+def raster(box, step):
+    r = np.arange(0.0, box[0] + step / 2, step)
+    z = np.arange(0.0, box[1] + step / 2, step)
+    R_, Z_ = np.meshgrid(r, z)
+    return r, z, np.column_stack([R_.ravel(), Z_.ravel()]), R_.shape
+
+
+def level_set_area(curve):
+    """Area of the surfaces of revolution of polylines: sum 2 pi r ds."""
+    total = 0.0
+    for piece in curve:
+        ds = np.hypot(*np.diff(piece, axis=0).T)
+        total += 2.0 * np.pi * np.sum(0.5 * (piece[1:, 0] + piece[:-1, 0]) * ds)
+    return total
+
+
+def test_the_clifford_torus_has_radii_in_ratio_sqrt2_and_its_level_set_the_targets():
+    p = scene(branch='torus', reduced_volume=CLIFFORD, box=(0.8, 1.0), eps=0.02)
+    kind, (a, b) = options.check_fits(p)
+    assert kind == 'torus'
+    assert a == pytest.approx(0.18977, abs=1e-5) and b / a == pytest.approx(math.sqrt(2), 1e-9)
+    r, z, points, shape = raster(p.box, 0.004)
+    phi = initial.profile(initial.torus_distance(points, a, b, 0.5), p.eps).reshape(shape)
+    curve = zero_contour(r, z, phi)
+    assert topology(curve, p.box)['label'] == '1 torus'
+    assert level_set_area(curve) == pytest.approx(p.area, rel=0.01)
+    assert enclosed_volume(curve) == pytest.approx(p.volume, rel=0.01)
+    # phi is the tanh of the distance: positive on the centre line, -1 far out.
+    assert initial.profile(initial.torus_distance(np.array([[b, 0.5]]), a, b, 0.5), p.eps) > 0.99
+
+
+def test_no_ring_torus_above_its_largest_reduced_volume():
+    with pytest.raises(ValueError, match='no ring torus'):
+        initial.torus_radii(4 * np.pi * R ** 2, 0.9 * 4 / 3 * np.pi * R ** 3)
+    with pytest.raises(UsageError, match=r'no ring torus has the area and volume.*-pf_branch torus'):
+        options.validate(scene(branch='torus', reduced_volume=0.9))
+
+
+def test_the_signed_distance_to_a_generating_curve_is_exact_for_a_sphere():
+    theta = np.linspace(-np.pi / 2, np.pi / 2, 201)  # bottom pole to top pole
+    rho, zc, spacing = 0.3, 0.5, 1e-3
+    r, z, points, _ = raster((0.6, 1.0), 0.01)
+    d = initial.curve_distance(points, rho * np.cos(theta), zc + rho * np.sin(theta), spacing)
+    exact = rho - np.hypot(points[:, 0], points[:, 1] - zc)
+    # The polyline lies within rho (1 - cos(pi / 400)) of the circle, the resampling within spacing / 2.
+    assert np.max(np.abs(d - exact)) < 2e-5 + spacing / 2
+    assert np.all(np.sign(d[np.abs(exact) > 1e-3]) == np.sign(exact[np.abs(exact) > 1e-3]))
+
+
+def test_the_signed_distance_sees_an_invagination():
+    # The outer circle of a stomatocyte-like cup: the sign of every point against the union
+    # of the two spheres bounded by the same polyline, traced pole to pole through the neck.
+    radii, heights = np.array([0.3, 0.2]), np.array([-0.2, 0.25])
+    r, z, points, shape = raster((0.5, 1.2), 0.01)
+    exact = initial.spheres_distance(points, radii, heights, 0.6)
+    curve = zero_contour(r, z, exact.reshape(shape))
+    assert len(curve) == 1
+    piece = curve[0] if curve[0][0, 1] < curve[0][-1, 1] else curve[0][::-1]
+    d = initial.curve_distance(points, piece[:, 0], piece[:, 1], 1e-3)
+    away = np.abs(exact) > 0.02
+    assert np.all(np.sign(d[away]) == np.sign(exact[away]))
+    outside = exact < -0.02  # outside a union, the larger signed distance is the distance
+    assert np.max(np.abs(d[outside] - exact[outside])) < 2e-3
+
+
+@pytest.mark.parametrize('v, ratio', [(1 / math.sqrt(2), 1.0), (0.8, 1.0), (0.8, 0.7)])
+def test_two_spheres_have_the_area_volume_and_centroid(v, ratio):
+    area, volume = 4 * np.pi * R ** 2, v * 4 / 3 * np.pi * R ** 3
+    radii, heights = initial.two_spheres(area, volume, ratio)
+    assert radii[1] == pytest.approx(ratio * radii[0])
+    step = 0.002
+    r, z, points, shape = raster((0.4, 1.4), step)
+    inside = initial.spheres_distance(points, radii, heights, 0.7) > 0
+    w = 2 * np.pi * points[:, 0] * step * step
+    assert np.sum(w * inside) == pytest.approx(volume, rel=0.01)
+    assert np.sum(w * inside * (points[:, 1] - 0.7)) == pytest.approx(0.0, abs=1e-3 * volume)
+    curve = zero_contour(r, z, initial.spheres_distance(points, radii, heights, 0.7).reshape(shape))
+    assert level_set_area(curve) == pytest.approx(area, rel=0.01)
+
+
+def test_the_budded_start_of_the_limit_is_two_equal_spheres_of_radius_r_over_sqrt2():
+    p = scene(branch='budded', reduced_volume=1 / math.sqrt(2), box=(0.7, 1.8), eps=0.02)
+    kind, (radii, heights) = options.check_fits(p)
+    assert kind == 'spheres' and np.allclose(radii, R / math.sqrt(2))
+    assert np.allclose(heights, [-R / math.sqrt(2), R / math.sqrt(2)])  # touching, centred
+    _, _, points, shape = raster(p.box, 0.005)
+    phi = initial.profile(initial.spheres_distance(points, radii, heights, 0.9), p.eps)
+    assert ndimage.label(phi.reshape(shape) > 0)[1] == 2
+    # An up-down symmetric start: the half box admits it.
+    options.validate(replace(p, symmetric=True))
+
+
+def test_the_pear_start_is_two_unequal_spheres():
+    p = scene(branch='pear', reduced_volume=0.8, box=(0.7, 1.6), eps=0.03)
+    kind, (radii, heights) = options.check_fits(p)
+    assert kind == 'spheres' and radii[1] == pytest.approx(initial.PEAR_RATIO * radii[0])
+    with pytest.raises(UsageError, match='pair of spheres'):
+        options.validate(replace(p, reduced_volume=0.7))
+
+
+@pytest.mark.parametrize('branch', ['stomatocyte', 'pear'])
+def test_the_half_box_refuses_up_down_asymmetric_families(branch):
+    with pytest.raises(UsageError, match=rf'-pf_symmetric: the {branch} is not up-down symmetric'):
+        options.check_scene(scene(branch=branch, reduced_volume=0.6, symmetric=True))
+
+
+def test_a_box_too_small_for_the_start_names_the_box_it_needs():
+    p = scene(branch='torus', reduced_volume=CLIFFORD, box=(0.5, 1.0), eps=0.04)
+    with pytest.raises(UsageError, match=r'-pf_box 0.5,1 cannot hold the torus vesicle .*'
+                                         r'ring torus start reaches r = 0.4581.*need Rb >= 0.5781'):
+        options.validate(p)
+    options.validate(replace(p, box=(0.58, 1.0)))
+    p = scene(branch='budded', reduced_volume=0.75, box=(0.7, 1.0), eps=0.04)
+    with pytest.raises(UsageError, match=r'cannot hold the budded vesicle.*Zb >= '):
+        options.validate(p)
+
+
+def test_the_start_must_be_one_of_the_family():
+    with pytest.raises(UsageError, match=r'-pf_start spheroid: the torus starts from torus'):
+        options.validate(scene(branch='torus', reduced_volume=CLIFFORD, start='spheroid'))
+    with pytest.raises(UsageError, match=r'-pf_start: unknown start'):
+        options.validate(scene(start='sphere'))
+    assert options.start_kind('stomatocyte') == 'sharp'
+    assert options.start_kind('oblate') == 'spheroid' and options.start_kind('oblate', 'sharp') == 'sharp'
+
+
+def test_help_lists_the_families_and_starts():
+    text = options.help_text()
+    assert 'oblate | prolate | stomatocyte | pear | budded | torus' in text
+    assert '-pf_start' in text and 'auto | spheroid | sharp' in text
