@@ -646,7 +646,8 @@ def phase_field_checks(mpi, xy, phi, attrs):
     set exists, its topology (`limit.topology`: ``topology``, ``components``,
     ``genus``) and, for one sphere like the sharp shapes, the energy error and
     level-set distance against the sharp-interface shape of the scene and the
-    level set's own energy (`limit.level_set_energy`), as attributes. Rank 0
+    level set's own energy (`limit.level_set_energy`), or for one torus its
+    own energy and radii (`limit.loop_energy`), as attributes. Rank 0
     computes."""
     from pfmembrane.analysis import limit
     result = {}
@@ -659,10 +660,14 @@ def phase_field_checks(mpi, xy, phi, attrs):
             shape = limit.topology(curve, ckpt.box)
             result.update(topology=shape['label'], components=shape['components'],
                           genus=shape['tori'])
-            c = limit.compare(ckpt, field=field_h, curve=curve)
-            result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
-                          sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
-                          level_set_energy=c['energy_level_set'])
+            if shape['label'] == '1 torus':   # no sharp torus to compare: its own energy
+                energy, radii = limit.loop_energy(ckpt, curve[0], field_h)
+                result.update(level_set_energy=energy, torus_radii=np.asarray(radii))
+            else:
+                c = limit.compare(ckpt, field=field_h, curve=curve)
+                result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
+                              sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
+                              level_set_energy=c['energy_level_set'])
         except (ValueError, RuntimeError) as e:
             print(f"sharp interface: no comparison ({e})", flush=True)
     return mpi.bcast(result, root=0)

@@ -132,6 +132,10 @@ def summary(res, output, print_fn):
         print_fn(f"topology: phi_h = 0 is {a['topology']}"
                  + (f" (CHANGED: the start was {before})" if before and before != a['topology']
                     else ''))
+    if 'torus_radii' in a:
+        tube, centre = a['torus_radii']
+        print_fn(f"level set: a torus of tube radius {tube:.4g} round r = {centre:.4g} "
+                 f"(ratio {centre / tube:.4f}), its own energy {a['level_set_energy']:.6f}")
     if 'sharp_energy' in a:
         print_fn(
             f"sharp interface: E {a['sharp_energy']:.6f}, relative error "
