@@ -48,6 +48,9 @@ def test_every_command_line_of_the_quick_start_works_in_a_fresh_shell(command_li
     assert any('-pf_eps' in o and 'Exit status' in o for o in outputs.values())  # -help
     monitored = next(o for line, o in outputs.items() if '-log_view' in line)
     assert 'SNES Function norm' in monitored and 'pfStage2' in monitored
+    modes = next(o for line, o in outputs.items() if 'studies.modes' in line)
+    assert re.search(r'^\| 2 \| 1 \| -', modes, flags=re.M)  # the coarse oblate: m = 2 unstable
+    assert os.path.exists(os.path.join(ROOT, 'runs', 'modes', 'coarse_modes.png'))
 
 
 def test_the_python_quick_start_prints_the_command_line_energy(command_lines, tmp_path):

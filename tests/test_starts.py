@@ -171,3 +171,22 @@ def test_the_torus_start_stays_a_torus_and_reports_its_own_energy():
     tube, centre = res.attrs['torus_radii']
     assert np.sqrt(2) < centre / tube < 1.7
     assert 'sharp_energy' not in res.attrs
+
+
+def test_the_signed_distance_has_no_kink_on_the_axis_of_a_channel():
+    """A sphere of radius 0.3 with a blind axial hole of radius a = 0.05 down to its centre
+    (a stomatocyte's neck): on the axis in the hole the distance to the hole's ring,
+    |r| - a, would have a kink; within AXIS_ROUNDING spacings of the axis it is rounded
+    to (r^2 + w^2) / (2 w) - a, and exact beyond."""
+    a, spacing = 0.05, 1e-3
+    top = np.arcsin(np.sqrt(0.09 - a * a) / 0.3)
+    theta = np.linspace(-np.pi / 2, top, 200)
+    r = np.concatenate([0.3 * np.cos(theta), [a, a], np.linspace(a, 0.0, 20)])
+    z = np.concatenate([0.3 * np.sin(theta), [np.sqrt(0.09 - a * a), 0.0], np.zeros(20)])
+    w = initial.AXIS_ROUNDING * spacing
+    radii = np.array([0.0, 0.1, 0.5, 1.0, 1.5, 2.0]) * w
+    d = initial.curve_distance(np.column_stack([radii, np.full_like(radii, 0.15)]), r, z,
+                               spacing)
+    rounded = np.where(radii < w, (radii ** 2 + w * w) / (2 * w), radii) - a
+    assert np.max(np.abs(d - rounded)) < spacing
+    assert (d[1] - d[0]) / radii[1] < 0.1  # the exact distance has slope 1 from the axis

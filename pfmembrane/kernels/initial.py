@@ -6,6 +6,9 @@ from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 PEAR_RATIO = 0.7  # the pear's start: two spheres of this radius ratio
+# The rounding of a curve's distance at the axis, in resampling spacings: the sharp starts
+# resample every eps / 32 (api.CURVE_SPACING), so over eps / 2.
+AXIS_ROUNDING = 16
 
 
 def spheroid_area(a, c):
@@ -144,15 +147,26 @@ def curve_distance(points, r, z, spacing):
 
     The distance to the nearest point of the curve and its mirror image about
     r = 0, resampled every `spacing` (error below spacing / 2 on the curve,
-    spacing^2 / (8 d) at a distance d); inside by the even-odd rule on that
-    closed polygon.
+    spacing^2 / (8 d) at a distance d), rounded within AXIS_ROUNDING spacings of
+    the axis; inside by the even-odd rule on that closed polygon.
     """
     polygon = np.concatenate([np.column_stack([r, z]), np.column_stack([-r, z])[::-1]])
     polygon = np.vstack([polygon, polygon[:1]])
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(polygon, axis=0).T))])
     t = np.linspace(0.0, s[-1], int(np.ceil(s[-1] / spacing)) + 1)
     fine = np.column_stack([np.interp(t, s, polygon[:, 0]), np.interp(t, s, polygon[:, 1])])
-    d = cKDTree(fine).query(points)[0]
+    tree = cKDTree(fine)
+    d = tree.query(points)[0]
+    # On the axis inside a channel of the curve (a stomatocyte's neck) the distance to
+    # the ring of the channel has a conical kink, d = |r| - a, whose Laplacian 1/r puts
+    # a spurious (logarithmically divergent) W^2 on the axis: there r is replaced by
+    # (r^2 + w^2) / (2 w), smooth and even, C1 at r = w.
+    w = AXIS_ROUNDING * spacing
+    near = np.flatnonzero(points[:, 0] < w)
+    lifted = np.column_stack([(points[near, 0] ** 2 + w * w) / (2 * w), points[near, 1]])
+    # in full across the interface (8 w = 4 eps), fading where the profile has saturated
+    weight = np.exp(-np.maximum(d[near] / w - 8.0, 0.0) ** 2)
+    d[near] += weight * (tree.query(lifted)[0] - d[near])
     return np.where(_inside(points, polygon), d, -d)
 
 

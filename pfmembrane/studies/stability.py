@@ -1,7 +1,7 @@
 """Azimuthal stability along branches: the index per mode m of every state.
 
-    python -m pfmembrane.studies.stability [--np 2] [--eps 0.04] [--nodes 6124] [--modes 6]
-        [--out runs/modes] [--series NAME ...] [-- SOLVER OPTIONS]
+    python -m pfmembrane.studies.stability [--np 2] [--groups 1] [--eps 0.04] [--nodes 6124]
+        [--modes 6] [--out runs/modes] [--series NAME ...] [--count K] [-- SOLVER OPTIONS]
 
 Each series is a continuation in one process on one grid (`pf.solve` from the previous
 state, Newton on the bordered system first), and at each converged state `pf.stability`:
@@ -9,8 +9,13 @@ the index per m = 0 ... M (negative eigenvalues of the second variation in psi(r
 cos(m theta), rigid motions excluded) and the lowest eigenvalue per m. A series stops at
 its first failed solve. The series (`SERIES`): the prolate, oblate and stomatocyte branches
 at c0 = 0 for v = 0.95 ... 0.55, and the oblate branch in the reduced spontaneous curvature
-c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6. Writes OUT/branches.md (one table per series)
-and OUT/branches.png (the lowest eigenvalue of m = 2, 3, 4 along each series).
+c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6; `--count K` keeps the first K points of each.
+Writes OUT/branches.md (one table per series) and OUT/branches.png (the lowest eigenvalue of
+m = 2, 3, 4 along each series).
+
+The series are independent: `--groups G` splits the NP ranks into G groups of NP / G ranks,
+each following every G-th series on its own sub-communicator, so one `mpiexec -n NP` keeps
+every rank busy; the tables are the same whatever the grouping.
 """
 import argparse
 import math
@@ -52,11 +57,11 @@ def box_of(branch, points, eps):
     return default_box(tuple(need))
 
 
-def follow(name, args, say):
-    """Solve and analyse the points of one series in order. Collective."""
+def follow(name, args, comm, say):
+    """Solve and analyse the points of one series in order. Collective on `comm`."""
     import pfmembrane as pf
     branch = SERIES[name][0]
-    points = scenes(name)
+    points = scenes(name)[:args.count]
     box = box_of(branch, points, args.eps)
     grid, previous, rows = None, None, []
     for v, c0 in points:
@@ -64,7 +69,8 @@ def follow(name, args, say):
                          branch=branch)
         # the paper box's spacing in every box
         grid = grid or pf.Grid.uniform(scene, nodes=round(args.nodes * box[0] * box[1]
-                                                          / (PAPER_BOX[0] * PAPER_BOX[1])))
+                                                          / (PAPER_BOX[0] * PAPER_BOX[1])),
+                                       comm=comm)
         say(f"-- {name}: v {v:g} c0 {c0:g} (C0 {scene.c0:g}), box {box[0]:g}x{box[1]:g}")
         t0 = time.perf_counter()
         options = dict(args.solver, **({'pf_stage1': 'none'} if previous else {}))
@@ -102,7 +108,8 @@ def write(results, args, out):
     """OUT/branches.md and OUT/branches.png. Not collective."""
     lines = ["# Azimuthal stability along branches\n",
              f"eps {args.eps:g}, uniform grids of the spacing of {args.nodes} nodes in the paper box, R = {RADIUS:g}, "
-             f"m = 0 ... {args.modes}, {args.np} MPI ranks on {os.cpu_count()} cores. "
+             f"m = 0 ... {args.modes}, {args.np} MPI ranks in {args.groups} group(s) on "
+             f"{os.cpu_count()} cores. "
              "c0 is the reduced spontaneous curvature 2 C0 R (SBL's). index per m: negative "
              "eigenvalues of the second variation of E - nu . (c - c0) in the mode "
              "psi(r, z) cos(m theta) (on the constraints' tangent space for m = 0), rigid "
@@ -110,6 +117,7 @@ def write(results, args, out):
              f"Regenerate: `python -m pfmembrane.studies.stability --np {args.np} --eps "
              f"{args.eps:g} --nodes {args.nodes} --modes {args.modes} --out {args.out}"
              + (f" --series {' '.join(args.series)}" if args.series != list(SERIES) else '')
+             + (f" --count {args.count}" if args.count else '')
              + "`.\n"]
     for s in results:
         lines += [f"\n## {s['name']}: the {s['branch']} branch, {SERIES[s['name']][1]} "
@@ -150,17 +158,32 @@ def main(argv=None):
     ap.add_argument('--nodes', type=int, default=6124, help='nodes in the paper box (scaled)')
     ap.add_argument('--modes', type=int, default=6, help='highest m')
     ap.add_argument('--out', default=os.path.join('runs', 'modes'))
+    ap.add_argument('--groups', type=int, default=1, help='rank groups, one series each')
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
+    ap.add_argument('--count', type=int, help='the first COUNT points of each series')
     ap.add_argument('options', nargs='*', metavar='-- OPTION')
     args = ap.parse_args(argv)
     args.series = [s for s in args.series if SERIES[s][0] in BRANCHES]
     args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
+    if args.groups < 1 or args.np % args.groups:
+        ap.error(f"--groups {args.groups} does not divide --np {args.np}")
     launch.ensure_ranks(args.np, 'pfmembrane.studies.stability', sys.argv[1:])
     import pfmembrane as pf
     PETSc = pf.api.petsc(sys.argv[:1])
-    say = PETSc.Sys.Print
-    results = [follow(name, args, say) for name in args.series]
-    if PETSc.COMM_WORLD.getRank() == 0:
+    world = PETSc.COMM_WORLD.tompi4py()
+    group = world.Get_rank() * args.groups // world.Get_size()
+    sub = world.Split(group, world.Get_rank())
+    comm = PETSc.Comm(sub)
+
+    def say(text):
+        PETSc.Sys.Print(f"[group {group}] {text}" if args.groups > 1 else text, comm=comm)
+
+    mine = [follow(name, args, comm, say) for name in args.series[group::args.groups]]
+    # each group's first rank hands its series to the world's first rank, in SERIES order
+    gathered = world.gather(mine if sub.Get_rank() == 0 else [], root=0)
+    if world.Get_rank() == 0:
+        done = {s['name']: s for part in gathered for s in part}
+        results = [done[name] for name in args.series]
         os.makedirs(args.out, exist_ok=True)
         write(results, args, args.out)
         print(os.path.join(args.out, 'branches.md'))
