@@ -1,7 +1,8 @@
 """Azimuthal stability along branches: the index per mode m of every state.
 
     python -m pfmembrane.studies.stability [--np 2] [--groups 1] [--eps 0.04] [--nodes 6124]
-        [--modes 6] [--out runs/modes] [--series NAME ...] [--count K] [-- SOLVER OPTIONS]
+        [--modes 6] [--out runs/modes] [--series NAME ...] [--count K] [--values X ...]
+        [-- SOLVER OPTIONS]
 
 Each series is a continuation in one process on one grid (`pf.solve` from the previous
 state, Newton on the bordered system first), and at each converged state `pf.stability`:
@@ -9,7 +10,7 @@ the index per m = 0 ... M (negative eigenvalues of the second variation in psi(r
 cos(m theta), rigid motions excluded) and the lowest eigenvalue per m. A series stops at
 its first failed solve. The series (`SERIES`): the prolate, oblate and stomatocyte branches
 at c0 = 0 for v = 0.95 ... 0.55, and the oblate branch in the reduced spontaneous curvature
-c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6; `--count K` keeps the first K points of each.
+c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6; `--count K` keeps the first K points of each, `--values X ...` replaces their values.
 Writes OUT/branches.md (one table per series) and OUT/branches.png (the lowest eigenvalue of
 m = 2, 3, 4 along each series).
 
@@ -42,10 +43,11 @@ SERIES = {
 MARGIN = 3.0  # eps between every shape of a series and the box
 
 
-def scenes(name):
-    """(reduced volume, reduced c0) of each point of a series."""
-    _, parameter, values, other = SERIES[name]
-    return [(x, other) if parameter == 'v' else (other, x) for x in values]
+def scenes(name, values=None):
+    """(reduced volume, reduced c0) of each point of a series (`values` in place of its
+    own values of the parameter it follows)."""
+    _, parameter, own, other = SERIES[name]
+    return [(x, other) if parameter == 'v' else (other, x) for x in values or own]
 
 
 def box_of(branch, points, eps):
@@ -61,7 +63,7 @@ def follow(name, args, comm, say):
     """Solve and analyse the points of one series in order. Collective on `comm`."""
     import pfmembrane as pf
     branch = SERIES[name][0]
-    points = scenes(name)[:args.count]
+    points = scenes(name, args.values)[:args.count]
     box = box_of(branch, points, args.eps)
     grid, previous, rows = None, None, []
     for v, c0 in points:
@@ -118,6 +120,7 @@ def write(results, args, out):
              f"{args.eps:g} --nodes {args.nodes} --modes {args.modes} --out {args.out}"
              + (f" --series {' '.join(args.series)}" if args.series != list(SERIES) else '')
              + (f" --count {args.count}" if args.count else '')
+             + (f" --values {' '.join(map(format, args.values))}" if args.values else '')
              + "`.\n"]
     for s in results:
         lines += [f"\n## {s['name']}: the {s['branch']} branch, {SERIES[s['name']][1]} "
@@ -161,6 +164,8 @@ def main(argv=None):
     ap.add_argument('--groups', type=int, default=1, help='rank groups, one series each')
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
     ap.add_argument('--count', type=int, help='the first COUNT points of each series')
+    ap.add_argument('--values', type=float, nargs='+',
+                    help="the followed parameter's values, in place of each series' own")
     ap.add_argument('options', nargs='*', metavar='-- OPTION')
     args = ap.parse_args(argv)
     args.series = [s for s in args.series if SERIES[s][0] in BRANCHES]

@@ -8,14 +8,14 @@ import pytest
 
 pytestmark = [pytest.mark.slow, pytest.mark.mpi]
 
-SMALL = ['--series', 'oblate', 'oblate_v0.8', '--count', '2', '--nodes', '800', '--eps', '0.08',
-         '--modes', '2']
+SMALL = ['--series', 'oblate', 'oblate_v0.8', '--count', '2', '--nodes', '1200', '--eps', '0.07',
+         '--modes', '1']
 
 
 def _rows(path):
     """The table rows without the iteration counts and the seconds: the summation order
     of threaded BLAS differs between the runs, which can move a count by a few where the
-    first solve on a coarse grid takes ~90 Newton steps; the printed values agree."""
+    solves on a coarse grid take 35-55 Newton steps; the printed values agree."""
     rows = [line.split('|')[1:-3] for line in path.read_text().splitlines()
             if re.match(r'^\| \d', line)]
     return [row[:7] + row[8:] for row in rows]
