@@ -104,6 +104,21 @@ def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=
     return res, output
 
 
+def solved(scene_file, args, path, cache, print_fn=None):
+    """The result of the options file `scene_file` with `args` added and
+    `-pf_output path`: read back if `path` exists, else solved on COMM_WORLD
+    and summarized. Collective."""
+    if os.path.exists(path):
+        return api.read(path)
+    PETSc = api.petsc()
+    print_fn = print_fn or PETSc.Sys.Print
+    table = options.Table.from_files(scene_file, args=[*args, '-pf_output', path])
+    res, _ = execute(options.read(table), PETSc.COMM_WORLD, print_fn, solver_options(table),
+                     prefix=None, cache=cache)
+    summary(res, path, print_fn)
+    return res
+
+
 def solver_options(table):
     """The entries of an options table that belong to a solve: the solver's
     own `-pf_` settings and every PETSc option."""

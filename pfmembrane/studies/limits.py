@@ -28,17 +28,10 @@ SCENES = {name: os.path.join('options', 'limits', f'{name}.opts') for name in RO
 
 def run(name, eps, nodes, out, cache):
     """The checkpoint of one row, solved unless it exists."""
-    from pfmembrane import api, run as runs
-    from pfmembrane.io import checkpoint, options
+    from pfmembrane import run as runs
     path = os.path.join(out, f"{name}_n{nodes}_eps{eps:g}.h5")
-    if not os.path.exists(path):
-        PETSc = api.petsc(sys.argv[:1])
-        table = options.Table.from_files(SCENES[name], args=[
-            '-pf_nodes', str(nodes), '-pf_eps', str(eps), '-pf_output', path])
-        res, _ = runs.execute(options.read(table), PETSc.COMM_WORLD, PETSc.Sys.Print,
-                              runs.solver_options(table), prefix=None, cache=cache)
-        runs.summary(res, path, PETSc.Sys.Print)
-    return checkpoint.read(path)
+    return runs.solved(SCENES[name], ['-pf_nodes', str(nodes), '-pf_eps', str(eps)], path,
+                       cache).checkpoint()
 
 
 def measure(ckpt):

@@ -13,8 +13,6 @@ import argparse
 import os
 import sys
 
-import h5py
-
 from pfmembrane.studies import launch
 from pfmembrane.studies.sequence import iterations
 from pfmembrane.scenes import FINEST, SCENE_FILES, UNIFORM
@@ -22,19 +20,10 @@ from pfmembrane.scenes import FINEST, SCENE_FILES, UNIFORM
 
 def run(branch, nodes, eps, out, cache):
     """The checkpoint attributes of one entry, solved unless its checkpoint exists."""
-    from pfmembrane import api, run as runs
-    from pfmembrane.io import options
+    from pfmembrane import run as runs
     path = os.path.join(out, f"{branch}_n{nodes}_eps{eps:g}.h5")
-    if not os.path.exists(path):
-        PETSc = api.petsc(sys.argv[:1])
-        table = options.Table.from_files(SCENE_FILES[branch], args=[
-            '-pf_nodes', str(nodes), '-pf_eps', str(eps), '-pf_output', path])
-        res, _ = runs.execute(options.read(table), PETSc.COMM_WORLD, PETSc.Sys.Print,
-                              runs.solver_options(table), prefix=None, cache=cache)
-        runs.summary(res, path, PETSc.Sys.Print)
-        return res.attrs
-    with h5py.File(path, 'r') as f:
-        return dict(f.attrs)
+    return runs.solved(SCENE_FILES[branch], ['-pf_nodes', str(nodes), '-pf_eps', str(eps)],
+                       path, cache).attrs
 
 
 def main(argv=None):
