@@ -38,6 +38,7 @@ help:
 	@echo "make figures  the README's figures from existing checkpoints, runs/figures/index.md"
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
 	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
+	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, slepc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
@@ -148,3 +149,6 @@ limits: install
 
 clean:
 	rm -rf $(VENV) runs/check.h5
+
+crossings: install
+	$(PY) -m pfmembrane.studies.crossings --np $(NP) --eps 0.02 --nodes 40000 --branch stomatocyte oblate prolate --out runs/crossings

@@ -10,7 +10,7 @@ The names below come from `pfmembrane.api`, imported on first use so that
 `python -m pfmembrane` starts PETSc before any numerical code loads.
 """
 __all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
-           'stability']
+           'continuation', 'stability']
 
 
 def __getattr__(name):

@@ -27,7 +27,7 @@ from pfmembrane.kernels import initial
 from pfmembrane.kernels.nodes import spacing_peak
 
 __all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
-           'stability']
+           'continuation', 'stability']
 
 # eps >= RESOLUTION * h_min, h_min the left peak of the mean-neighbour-distance
 # distribution: calibrated on the paper's Tables 1-5 (admitted eps/h = 1.67-1.76,
@@ -298,51 +298,156 @@ class Tangent(NamedTuple):
     nu: np.ndarray
 
 
-# Scene parameters a branch can follow. F is affine in V0 and A0 and quadratic in
-# C0 (grad E is linear in W, W affine in C0), so a central difference is exact.
+# Scene parameters a branch can follow (`Solver.tangent`, `Solver.arclength`).
 CONTINUATION = ('reduced_volume', 'c0', 'radius')
-DP = 1e-3
+
+
+class _Branch:
+    """A converged result's state as distributed Vecs, with a solver whose
+    problem `at(p)` moves to parameter value p. Collective; `close` frees it
+    and the options of its prefix."""
+
+    def __init__(self, result, parameter, options, prefix):
+        from pfmembrane.parallel.assembly import Problem
+        from pfmembrane.parallel.solver import Solver
+        if parameter not in CONTINUATION:
+            raise ValueError(f"no continuation in {parameter!r}: one of "
+                             f"{', '.join(CONTINUATION)}")
+        if result.grid is None or not result.converged:
+            raise ValueError("a branch starts from a converged result on its grid (a solve's)")
+        PETSc = petsc()
+        self.result, self.parameter, self.grid = result, parameter, result.grid
+        scene, lay = result.scene, self.grid.discrete.layout
+        self.values = {k: getattr(scene, k) for k in CONTINUATION}
+        self.P = Problem(self.grid.discrete, result.eps, scene.k, scene.c0,
+                         (scene.area, scene.volume), scene.zc)
+        self.x = self.P.create_vec()
+        self.x.setArray(result.phi[lay.order[lay.start:lay.start + lay.nowned]])
+        self.prefix = f"pf{next(_solve_count)}_" if prefix is None else prefix
+        self._options = _options(options, self.prefix)
+        self._options.__enter__()
+        self.solver = Solver(self.P, appoptions.read_settings(PETSc.Options(), self.prefix),
+                             self.prefix)
+        self.solver.nu = result.nu
+
+    def at(self, value):
+        """Put the problem at `value` of the parameter: its targets and C0."""
+        v = {**self.values, self.parameter: value}
+        R = v['radius']
+        self.P.targets[:2] = (4.0 * math.pi * R ** 2,
+                              v['reduced_volume'] * 4.0 / 3.0 * math.pi * R ** 3)
+        self.P.forms.c0 = v['c0']
+
+    def nodal(self, x, dirichlet):
+        values = self.grid.discrete.layout.gather(x)
+        return self.grid.comm.tompi4py().bcast(
+            None if values is None else _nodal(self.grid, values, dirichlet), root=0)
+
+    def close(self):
+        self.solver.destroy()
+        for key in self.solver.defaults:
+            petsc().Options().delValue(key)
+        self._options.__exit__(None, None, None)
 
 
 def tangent(result, parameter='reduced_volume', options=None, prefix=None):
     """The tangent of `result`'s branch in a scene parameter (`CONTINUATION`):
-    one Jacobian factorization at the converged state (`Solver.tangent`).
-    Collective on the result's grid. `options` as for `solve` (the factorization
-    reads `stage2_` options under the prefix)."""
-    from pfmembrane.parallel.assembly import Problem
-    from pfmembrane.parallel.solver import Solver
-    if parameter not in CONTINUATION:
-        raise ValueError(f"no continuation in {parameter!r}: one of {', '.join(CONTINUATION)}")
-    if result.grid is None or not result.converged:
-        raise ValueError("tangent needs a converged result on its grid (a solve's)")
-    PETSc, grid, scene = petsc(), result.grid, result.scene
-    lay = grid.discrete.layout
-    prefix = f"pf{next(_solve_count)}_" if prefix is None else prefix
+    dX/dp from one Jacobian factorization at the converged state
+    (`Solver.tangent`). Collective on the result's grid. `options` as for
+    `solve` (the factorization reads `stage2_` options under the prefix)."""
+    branch = _Branch(result, parameter, options, prefix)
+    try:
+        dx, dnu = branch.solver.tangent(branch.x, branch.values[parameter], branch.at)
+        return Tangent(parameter, branch.nodal(dx, 0.0), dnu)
+    finally:
+        branch.close()
 
-    def problem(s):
-        return Problem(grid.discrete, result.eps, s.k, s.c0, (s.area, s.volume), s.zc)
 
-    value = getattr(scene, parameter)
-    ends = [problem(replace(scene, **{parameter: value + d})) for d in (DP, -DP)]
-    P = problem(scene)
-    x = P.create_vec()
-    x.setArray(result.phi[lay.order[lay.start:lay.start + lay.nowned]])
-    grads = [x.duplicate() for _ in ends]
-    for end, g in zip(ends, grads):
-        end.gradients(x, g, x.duplicate())
-    grads[0].axpy(-1.0, grads[1])
-    grads[0].scale(0.5 / DP)
-    with _options(options, prefix):
-        solver = Solver(P, appoptions.read_settings(PETSc.Options(), prefix), prefix)
-        solver.nu = result.nu
-        dx, dnu = solver.tangent(x, grads[0], (ends[0].targets - ends[1].targets) / (2 * DP))
-        solver.destroy()
-        for key in solver.defaults:
-            PETSc.Options().delValue(key)
-    values = lay.gather(dx)
-    phi = grid.comm.tompi4py().bcast(None if values is None else _nodal(grid, values, 0.0),
-                                     root=0)
-    return Tangent(parameter, phi, dnu)
+def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix=None,
+                 checks=True):
+    """Pseudo-arclength continuation of `result`'s branch in a scene parameter
+    (`CONTINUATION`), in this process on the result's grid. Collective.
+
+    Yields a `Result` per point, `steps` of them or fewer should the step
+    have to shrink below ds / 64. The arclength s is measured in the norm
+    |(x, p)|^2 = x . x / n + p^2 of the n free nodal values x (their RMS) and
+    the parameter p (`Solver.arclength`), the first step in the direction
+    of increasing parameter for ds > 0. The step grows by 1.5 after a
+    corrector of at most 3 iterations (to `ds_max`, by default 4 |ds|) and
+    halves after a failed one. Each result's attrs carry the parameter,
+    `arclength`, `index_0` (negative eigenvalues of the Hessian of the
+    Lagrangian on the constraints' tangent space: the factorization's inertia
+    minus the constraints), `dp_ds` and `fold` (1 where dp/ds changed sign
+    since the previous point) and `index_change` (1 where index_0 changed
+    without a fold: a bifurcation passed).
+    """
+    from pfmembrane.parallel.solver import SolveError
+    branch = _Branch(result, parameter, options, prefix)
+    solver, x = branch.solver, branch.x
+    p = branch.values[parameter]
+    ds_max = ds_max or 4 * abs(ds)
+    try:
+        bx, bnu = solver.tangent(x, p, branch.at)
+        t = _unit(bx, bnu, 1.0 if ds > 0 else -1.0)
+        step, s, previous = abs(ds), 0.0, (t[2], None)
+        for _ in range(steps):
+            x_old, nu_old = x.copy(), solver.nu.copy()
+            try:
+                p_new, its, negative, (bx, bnu) = solver.arclength(x, p, t, step, branch.at)
+            except SolveError:
+                x_old.copy(x)
+                solver.nu = nu_old
+                branch.at(p)
+                step /= 2
+                if step < abs(ds) / 64:
+                    return
+                continue
+            s += step
+            p = p_new
+            # the new tangent continues the old one: (b, 1) oriented by t
+            t_new = _unit(bx, bnu, 1.0)
+            if t[0].dot(t_new[0]) / x.getSize() + t[2] * t_new[2] < 0:
+                t_new = _unit(bx, bnu, -1.0)
+            index = None if negative is None else negative - solver.ncon
+            fold = int(np.sign(t_new[2]) != np.sign(previous[0]))
+            changed = int(previous[1] is not None and index is not None
+                          and index != previous[1] and not fold)
+            t, previous = t_new, (t_new[2], index)
+            yield _point(branch, p, s, index, t_new[2], fold, changed, its, checks)
+            step = min(1.5 * step, ds_max) if its <= 3 else step
+    finally:
+        branch.close()
+
+
+def _unit(bx, bnu, sign):
+    """The unit tangent (t_x, t_nu, t_p) along (sign b_x, sign b_nu, sign) in the
+    norm of `Solver.arclength`."""
+    norm = math.sqrt(bx.dot(bx) / bx.getSize() + 1.0)
+    tx = bx.copy()
+    tx.scale(sign / norm)
+    return tx, sign * np.asarray(bnu) / norm, sign / norm
+
+
+def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
+    """The Result of a converged point of a continuation."""
+    res, solver = branch.result, branch.solver
+    vals = branch.P.values(branch.x)
+    nu = solver.nu
+    attrs = {**res.attrs, branch.parameter: p, 'energy': vals[0], 'area': vals[1],
+             'volume': vals[2], 'moment': vals[3], **dict(zip(MULTIPLIERS, nu)),
+             'converged': 1, 'arclength': s, 'index_0': -1 if index is None else index,
+             'dp_ds': dp_ds, 'fold': fold, 'index_change': changed,
+             'stage1_iterations': -1, 'stage2_iterations': its,
+             'max_phi': branch.P.max_abs_phi(branch.x), 'parent': ''}
+    for key in ('sharp_energy', 'sharp_rel_error', 'sharp_dist_max', 'sharp_dist_mean',
+                'level_set_energy', 'topology', 'components', 'genus', 'torus_radii',
+                'index_m', 'lowest_m', 'time_modes'):
+        attrs.pop(key, None)
+    phi = branch.nodal(branch.x, -1.0)
+    if checks:
+        attrs.update(phase_field_checks(branch.grid.comm.tompi4py(), branch.grid.nodes, phi,
+                                        attrs))
+    return Result(branch.grid.nodes, phi, attrs, grid=branch.grid)
 
 
 def along(result, tangent, step):

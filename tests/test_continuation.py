@@ -50,3 +50,36 @@ def test_along_moves_the_state_and_the_parameter(solved):
     np.testing.assert_allclose(moved.nu, solved.nu + 0.1 * t.nu)
     with pytest.raises(ValueError, match='no continuation'):
         pf.tangent(solved, 'eps')
+
+
+def test_arclength_points_solve_the_scene_at_their_parameter(solved):
+    """Each point of pf.continuation is an equilibrium of the scene at its own v: a
+    bordered Newton solve from it there stops at once with the same energy (measured: 0
+    or 1 iteration, 1e-13); the step grows, the index from the factorization's inertia is
+    that of the m = 0 mode Hessian, and no fold is reported on this regular stretch."""
+    from pfmembrane.parallel.modes import ModeAnalysis
+    points = list(pf.continuation(solved, 'reduced_volume', ds=0.02, steps=3, checks=False))
+    assert len(points) == 3
+    vs = [p.attrs['reduced_volume'] for p in points]
+    assert 0.9 < vs[0] < vs[1] < vs[2] < 0.96
+    assert vs[2] - vs[1] > vs[0] - 0.9                    # the step grew
+    for p in points:
+        scene = pf.Scene(reduced_volume=p.attrs['reduced_volume'], branch='oblate')
+        again = pf.solve(scene, solved.grid, EPS, start=p, options=dict(pf_stage1='none'),
+                         checks=False)
+        assert again.attrs['stage2_iterations'] <= 1
+        assert again.energy == pytest.approx(p.energy, rel=1e-11)
+        assert p.attrs['fold'] == 0 and p.attrs['index_change'] == 0
+    last = points[-1]
+    analysis = ModeAnalysis(solved.grid, last.scene, EPS, last.phi, last.nu[0])
+    try:
+        assert analysis.spectrum(0).index == last.attrs['index_0'] == 0
+    finally:
+        analysis.destroy()
+
+
+def test_continuation_in_c0_goes_both_ways(solved):
+    down = next(pf.continuation(solved, 'c0', ds=-0.05, steps=1, checks=False))
+    up = next(pf.continuation(solved, 'c0', ds=0.05, steps=1, checks=False))
+    assert down.attrs['c0'] < 0 < up.attrs['c0']
+    assert up.attrs['dp_ds'] > 0 > down.attrs['dp_ds']

@@ -19,6 +19,8 @@ SHIFT_GROWTH = 8.0
 # far from the minimizer), or at once where |grad L| < RESTART_GTOL |grad E|.
 RESTART_DECREMENT = 1e-9
 RESTART_GTOL = 1e-6
+# Relative parameter step of the central difference F_p in the arclength corrector.
+DP = 1e-4
 
 
 class SolveError(Exception):
@@ -308,35 +310,121 @@ class Solver:
         return vals, res
 
     # -- continuation --------------------------------------------------------
-    def tangent(self, x, dgrad, dtargets):
-        """(dx, dnu): the derivative of the converged state (x, nu) along its
-        branch with respect to a scene parameter p, from J [dx; dnu] = -dF/dp,
-        J the stage-2 Jacobian at (x, nu) and F its residual. A change of p
-        moves F by `dgrad` (d grad E / dp, a Vec) in the gradient rows and by
-        `dtargets` (d c0 / dp) in the constraint rows."""
+    # A branch is followed in a scene parameter p that `at(p)` sets on the
+    # problem. F is affine (A0, V0) or quadratic (C0: grad E is linear in W, W
+    # affine in C0) in the scene's parameters, so F_p by central differences is
+    # exact but for rounding.
+    def _residual(self, x, out):
+        """out = F(x, nu) = [grad E - C^T nu; -(c - c0)] in the bordered layout."""
         P = self.P
-        self.evaluate(x)
-        K = P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-        ksp = PETSc.KSP().create(P.comm)
-        self._configure_direct(ksp, 'stage2_')
-        ksp.setFromOptions()
-        ksp.setOperators(K)
-        rhs, sol = K.createVecs()
+        nl = P.layout.nowned
+        _, res = self.evaluate(x)
+        g = self.combine(x.duplicate(), self.nu)
+        out.getArray()[:nl] = g.getArray(readonly=True)
+        if P.comm.getRank() == P.comm.getSize() - 1:
+            out.getArray()[nl:] = -res
+        return out
+
+    def _parameter_derivative(self, x, p, at, out):
+        """out = dF/dp at (x, nu, p), by central differences; leaves the problem at p."""
+        h = DP * max(1.0, abs(p))
+        at(p + h)
+        self._residual(x, out)
+        at(p - h)
+        out.axpy(-1.0, self._residual(x, out.duplicate()))
+        out.scale(0.5 / h)
+        at(p)
+        return out
+
+    def _split(self, X):
+        """(x part Vec, nu part on every rank) of a bordered-layout Vec."""
+        P = self.P
         nl, last = P.layout.nowned, P.comm.getRank() == P.comm.getSize() - 1
-        rhs.getArray()[:nl] = -dgrad.getArray(readonly=True)
-        if last:
-            rhs.getArray()[nl:] = -np.asarray(dtargets, dtype=float)
-        ksp.solve(rhs, sol)
+        x = P.create_vec()
+        x.setArray(X.getArray(readonly=True)[:nl])
+        nu = X.getArray(readonly=True)[nl:].copy() if last else None
+        return x, np.asarray(self.mpi.bcast(nu, root=P.comm.getSize() - 1))
+
+    def tangent(self, x, p, at):
+        """(dx, dnu) = dX/dp of the converged state (x, nu) along its branch:
+        J dX/dp = -F_p, J the stage-2 Jacobian there (one factorization)."""
+        K = self.P.bordered_matrix()
+        Fp = self._parameter_derivative(x, p, at, K.createVecLeft())
+        self.evaluate(x)
+        self.P.assemble_bordered(x, self.nu[0], self.C, 0.0)
+        ksp = self._continuation_ksp()
+        ksp.setOperators(K)
+        Fp.scale(-1.0)
+        b = K.createVecLeft()
+        ksp.solve(Fp, b)
         self.factorizations += 1
-        dx = x.duplicate()
-        dx.setArray(sol.getArray(readonly=True)[:nl])
-        dnu = sol.getArray(readonly=True)[nl:].copy() if last else None
-        ksp.destroy()
-        return dx, np.asarray(self.mpi.bcast(dnu, root=P.comm.getSize() - 1))
+        return self._split(b)
+
+    def arclength(self, x, p, t, ds, at, max_it=25):
+        """The pseudo-arclength corrector (Keller's bordering): Newton on
+        F(x, nu; p) = 0 with N = t_x . (x - x0) + t_p (p - p0) - ds = 0, from
+        the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p).
+
+        `t` = (t_x Vec, t_nu, t_p) with (t_x, t_p) a unit vector in the norm
+        |(x, p)|^2 = x . x / n + p^2 (n free values: an RMS of phi). Each
+        iteration factors J once and solves J a = -F, J b = -F_p: the step is
+        a + dp b, dp making N vanish to first order; b is dX/dp there. Returns
+        (p, iterations, negative pivots of the last factorization, (b_x, b_nu));
+        x and nu are updated in place. Raises SolveError after `max_it`.
+        """
+        P = self.P
+        K = P.bordered_matrix()
+        ksp = self._continuation_ksp()
+        F, Fp, a, b = (K.createVecLeft() for _ in range(4))
+        tx, tnu, tp = t
+        x0, p0 = x.copy(), p
+        x.axpy(ds, tx)
+        self.nu = self.nu + ds * np.asarray(tnu)
+        p = p0 + ds * tp
+        dx, n = x.duplicate(), x.getSize()
+        norm0 = None
+        for it in range(max_it):
+            self._parameter_derivative(x, p, at, Fp)
+            self._residual(x, F)
+            x.copy(dx)
+            dx.axpy(-1.0, x0)
+            N = tx.dot(dx) / n + tp * (p - p0) - ds
+            norm = F.norm()
+            norm0 = norm if norm0 is None else norm0
+            if it and norm <= max(self.p.stage2_rtol * norm0, 1e-12) and abs(N) < 1e-10 * abs(ds):
+                break
+            P.assemble_bordered(x, self.nu[0], self.C, 0.0)
+            ksp.setOperators(K)
+            F.scale(-1.0)
+            ksp.solve(F, a)
+            Fp.scale(-1.0)
+            ksp.solve(Fp, b)
+            self.factorizations += 1
+            ax, _ = self._split(a)
+            bx, _ = self._split(b)
+            dp = -(N + tx.dot(ax) / n) / (tx.dot(bx) / n + tp)
+            a.axpy(dp, b)
+            step_x, step_nu = self._split(a)
+            x.axpy(1.0, step_x)
+            self.nu = self.nu + step_nu
+            p += dp
+            at(p)
+        else:
+            raise SolveError(f"the arclength corrector did not converge in {max_it} iterations "
+                             f"(|F| {norm:.2e}); try a shorter step")
+        return p, it, self._negative_pivots(ksp), self._split(b)
+
+    def _continuation_ksp(self):
+        """One LDL^T solver for every tangent and corrector step."""
+        if not hasattr(self, '_ksp2'):
+            self._ksp2 = PETSc.KSP().create(self.P.comm)
+            self._configure_direct(self._ksp2, 'stage2_')
+            self._ksp2.setFromOptions()
+        return self._ksp2
 
     def destroy(self):
         """Free the PETSc objects kept between iterations."""
-        for name in ('_ksp1', '_tao_obj'):
+        for name in ('_ksp1', '_ksp2', '_tao_obj'):
             obj = self.__dict__.pop(name, None)
             if obj is not None:
                 obj.destroy()
