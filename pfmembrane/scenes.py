@@ -6,6 +6,12 @@ count of a uniform grid, or the Table B.6 identifier of an adapted one),
 eps. The 296,344-node uniform grid is the paper's finest.
 """
 PAPER_BOX = (1.5, 2.0)  # (Rb, Zb) of every scene of the paper
+
+
+def paper_spacing(nodes, box):
+    """The node count of a uniform grid of `box` with the spacing of `nodes`
+    nodes in the paper box."""
+    return round(nodes * box[0] * box[1] / (PAPER_BOX[0] * PAPER_BOX[1]))
 SCENE_FILES = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 FINEST = 296344
 SHARP = {'oblate': 9.12657, 'prolate': 8.71756}

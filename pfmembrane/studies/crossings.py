@@ -27,8 +27,9 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from pfmembrane.analysis import sharp
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.scenes import paper_spacing
 from pfmembrane.studies import launch
+from pfmembrane.studies.sequence import iterations
 
 RADIUS = 0.4
 # name: (the branch of least energy above the crossing, the one below, the bracket in v,
@@ -93,8 +94,7 @@ def follow(branch, vs, args, say):
         scene = pf.Scene(reduced_volume=v, radius=RADIUS, box=box, branch=branch,
                          symmetric=symmetric)
         # the spacing of args.nodes in the paper box, in every box
-        grid = grid or pf.Grid.uniform(scene, nodes=round(args.nodes * box[0] * box[1]
-                                                          / (PAPER_BOX[0] * PAPER_BOX[1])))
+        grid = grid or pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box))
         say(f"-- {branch}: v {v:g}, box {box[0]:g}x{box[1]:g}{' (half)' if symmetric else ''}")
         t0 = time.perf_counter()
         if states:
@@ -124,8 +124,7 @@ def row(r):
     a = r['attrs']
     if not a.get('converged'):
         return f"| {r['v']:g} | not converged | | | | | | | | {r['wall']:.1f} |"
-    its = '+'.join(str(i) if i >= 0 else '-' for i in (a['stage1_iterations'],
-                                                       a['stage2_iterations']))
+    its = f"{iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])}"
     level, exact = a.get('level_set_energy', math.nan), a.get('sharp_energy', math.nan)
     return (f"| {r['v']:g} | {a['energy']:.5f} | {level:.5f} | {exact:.5f} "
             f"| {(level - exact) / exact:+.2e} | {a.get('topology', '')} | {a['nu_area']:.4f} "

@@ -27,8 +27,9 @@ import time
 import numpy as np
 
 from pfmembrane.io.options import BRANCHES
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.scenes import paper_spacing
 from pfmembrane.studies import launch
+from pfmembrane.studies.sequence import iterations
 
 RADIUS = 0.4
 VOLUMES = [round(0.95 - 0.05 * i, 2) for i in range(9)]
@@ -70,8 +71,7 @@ def follow(name, args, comm, say):
         scene = pf.Scene(reduced_volume=v, c0=c0 / (2 * RADIUS), radius=RADIUS, box=box,
                          branch=branch)
         # the paper box's spacing in every box
-        grid = grid or pf.Grid.uniform(scene, nodes=round(args.nodes * box[0] * box[1]
-                                                          / (PAPER_BOX[0] * PAPER_BOX[1])),
+        grid = grid or pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box),
                                        comm=comm)
         say(f"-- {name}: v {v:g} c0 {c0:g} (C0 {scene.c0:g}), box {box[0]:g}x{box[1]:g}")
         t0 = time.perf_counter()
@@ -96,8 +96,7 @@ def row(r):
     a = r['attrs']
     if not a.get('converged'):
         return f"| {r['v']:g} | {r['c0']:g} | not converged | | | | | | | | | {r['wall']:.1f} |"
-    its = '+'.join(str(i) if i >= 0 else '-' for i in (a['stage1_iterations'],
-                                                       a['stage2_iterations']))
+    its = f"{iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])}"
     level = a.get('level_set_energy', math.nan)
     return (f"| {r['v']:g} | {r['c0']:g} | {a['energy']:.5f} | {a['nu_area']:.4f} "
             f"| {a['nu_volume']:.3f} | {level:.5f} | {a.get('topology', '')} | {its} "
