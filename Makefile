@@ -151,4 +151,4 @@ clean:
 	rm -rf $(VENV) runs/check.h5
 
 crossings: install
-	$(PY) -m pfmembrane.studies.crossings --np $(NP) --eps 0.02 --nodes 40000 --branch stomatocyte oblate prolate --out runs/crossings
+	$(PY) -m pfmembrane.studies.crossings --np $(NP) --eps 0.01 --nodes 84000 --branch stomatocyte oblate prolate --out runs/crossings

@@ -400,6 +400,9 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
                 branch.at(p)
                 step /= 2
                 if step < abs(ds) / 64:
+                    warnings.warn(f"continuation in {parameter} stopped at {p:g}: the "
+                                  f"corrector failed down to a step of {step:.3g}",
+                                  stacklevel=2)
                     return
                 continue
             s += step

@@ -2,7 +2,7 @@
 
     python -m pfmembrane.studies.stability [--np 2] [--groups 1] [--eps 0.04] [--nodes 6124]
         [--modes 6] [--out runs/modes] [--series NAME ...] [--count K] [--values X ...]
-        [-- SOLVER OPTIONS]
+        [--box Rb,Zb] [-- SOLVER OPTIONS]
 
 Each series is a continuation in one process on one grid (`pf.solve` from the previous
 state, Newton on the bordered system first), and at each converged state `pf.stability`:
@@ -65,7 +65,7 @@ def follow(name, args, comm, say):
     import pfmembrane as pf
     branch = SERIES[name][0]
     points = scenes(name, args.values)[:args.count]
-    box = box_of(branch, points, args.eps)
+    box = args.box or box_of(branch, points, args.eps)
     grid, previous, rows = None, None, []
     for v, c0 in points:
         scene = pf.Scene(reduced_volume=v, c0=c0 / (2 * RADIUS), radius=RADIUS, box=box,
@@ -120,6 +120,7 @@ def write(results, args, out):
              + (f" --series {' '.join(args.series)}" if args.series != list(SERIES) else '')
              + (f" --count {args.count}" if args.count else '')
              + (f" --values {' '.join(map(format, args.values))}" if args.values else '')
+             + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
              + "`.\n"]
     for s in results:
         lines += [f"\n## {s['name']}: the {s['branch']} branch, {SERIES[s['name']][1]} "
@@ -163,6 +164,8 @@ def main(argv=None):
     ap.add_argument('--groups', type=int, default=1, help='rank groups, one series each')
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
     ap.add_argument('--count', type=int, help='the first COUNT points of each series')
+    ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
+                    help='Rb,Zb of every series (default: the paper box, grown where needed)')
     ap.add_argument('--values', type=float, nargs='+',
                     help="the followed parameter's values, in place of each series' own")
     ap.add_argument('options', nargs='*', metavar='-- OPTION')
