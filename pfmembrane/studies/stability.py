@@ -10,7 +10,7 @@ the index per m = 0 ... M (negative eigenvalues of the second variation in psi(r
 cos(m theta), rigid motions excluded) and the lowest eigenvalue per m. A series stops at
 its first failed solve. The series (`SERIES`): the prolate, oblate and stomatocyte branches
 at c0 = 0 for v = 0.95 ... 0.55, and the oblate branch in the reduced spontaneous curvature
-c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6; `--count K` keeps the first K points of each, `--values X ...` replaces their values.
+c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6, and in v at c0 = 2.8 (pde2path's vesicle demo); `--count K` keeps the first K points of each, `--values X ...` replaces their values.
 Writes OUT/branches.md (one table per series) and OUT/branches.png (the lowest eigenvalue of
 m = 2, 3, 4 along each series).
 
@@ -40,6 +40,9 @@ SERIES = {
     'oblate': ('oblate', 'v', VOLUMES, 0.0),
     'stomatocyte': ('stomatocyte', 'v', VOLUMES, 0.0),
     **{f"oblate_v{v:g}": ('oblate', 'c0', CURVATURES, v) for v in (0.8, 0.7, 0.6)},
+    # pde2path's vesicle demo follows the oblate branch in v at its c0 = C0 R = 1.4 (its
+    # energy int (H - c0)^2 dA, H the mean curvature, on the unit sphere): SBL's 2.8
+    'oblate_c2.8': ('oblate', 'v', VOLUMES, 2.8),
 }
 MARGIN = 3.0  # eps between every shape of a series and the box
 
