@@ -32,7 +32,7 @@ BAD_INPUT = {
     'eps-text': ([*BASE, '-pf_eps', 'abc'], "cannot read 'abc'"),
     'v>1': ([*BASE, '-pf_reduced_volume', '1.2'], 'reduced_volume must lie in (0, 1]'),
     'v-nan': ([*BASE, '-pf_reduced_volume', 'nan'], 'finite'),
-    'branch': ([*BASE, '-pf_branch', 'torus'], "unknown shape 'torus'"),
+    'branch': ([*BASE, '-pf_branch', 'cylinder'], "unknown shape 'cylinder'"),
     'box': ([*BASE, '-pf_box', '0.5,0.6'], 'cannot hold the oblate vesicle'),
     'nodes': ([*BASE, '-pf_nodes', '50'], 'too few'),
     'unresolved': ([*BASE, '-pf_eps', '0.03'], 'below what this grid resolves'),
