@@ -317,8 +317,8 @@ class _Branch:
             raise ValueError("a branch starts from a converged result on its grid (a solve's)")
         PETSc = petsc()
         self.result, self.parameter, self.grid = result, parameter, result.grid
-        scene, lay = result.scene, self.grid.discrete.layout
-        self.values = {k: getattr(scene, k) for k in CONTINUATION}
+        self.scene = scene = result.scene
+        lay = self.grid.discrete.layout
         self.P = Problem(self.grid.discrete, result.eps, scene.k, scene.c0,
                          (scene.area, scene.volume), scene.zc)
         self.x = self.P.create_vec()
@@ -332,16 +332,9 @@ class _Branch:
 
     def at(self, value):
         """Put the problem at `value` of the parameter: its targets and C0."""
-        v = {**self.values, self.parameter: value}
-        R = v['radius']
-        self.P.targets[:2] = (4.0 * math.pi * R ** 2,
-                              v['reduced_volume'] * 4.0 / 3.0 * math.pi * R ** 3)
-        self.P.forms.c0 = v['c0']
-
-    def nodal(self, x, dirichlet):
-        values = self.grid.discrete.layout.gather(x)
-        return self.grid.comm.tompi4py().bcast(
-            None if values is None else _nodal(self.grid, values, dirichlet), root=0)
+        scene = replace(self.scene, **{self.parameter: value})
+        self.P.targets[:2] = (scene.area, scene.volume)
+        self.P.forms.c0 = scene.c0
 
     def close(self):
         self.solver.destroy()
@@ -357,8 +350,8 @@ def tangent(result, parameter='reduced_volume', options=None, prefix=None):
     `solve` (the factorization reads `stage2_` options under the prefix)."""
     branch = _Branch(result, parameter, options, prefix)
     try:
-        dx, dnu = branch.solver.tangent(branch.x, branch.values[parameter], branch.at)
-        return Tangent(parameter, branch.nodal(dx, 0.0), dnu)
+        dx, dnu = branch.solver.tangent(branch.x, getattr(branch.scene, parameter), branch.at)
+        return Tangent(parameter, branch.grid.discrete.layout.nodal(dx, 0.0), dnu)
     finally:
         branch.close()
 
@@ -384,7 +377,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     from pfmembrane.parallel.solver import SolveError
     branch = _Branch(result, parameter, options, prefix)
     solver, x = branch.solver, branch.x
-    p = branch.values[parameter]
+    p = getattr(branch.scene, parameter)
     ds_max = ds_max or 4 * abs(ds)
     try:
         bx, bnu = solver.tangent(x, p, branch.at)
@@ -446,7 +439,7 @@ def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
                 'level_set_energy', 'topology', 'components', 'genus', 'torus_radii',
                 'index_m', 'lowest_m', 'time_modes'):
         attrs.pop(key, None)
-    phi = branch.nodal(branch.x, -1.0)
+    phi = branch.grid.discrete.layout.nodal(branch.x, -1.0)
     if checks:
         attrs.update(phase_field_checks(branch.grid.comm.tompi4py(), branch.grid.nodes, phi,
                                         attrs))
@@ -487,7 +480,8 @@ def stability(result, modes=6, nev=3, prefix='modes_', grid=None):
         spectra = []
         for m in range(modes + 1):
             s = analysis.spectrum(m)
-            spectra.append(s._replace(vectors=[analysis.nodal(chi) for chi in s.vectors]))
+            spectra.append(s._replace(vectors=[grid.discrete.layout.nodal(chi, 0.0)
+                                               for chi in s.vectors]))
     finally:
         analysis.destroy()
         stage.pop()
@@ -643,7 +637,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
         # with no collective cleanup that a rank still computing would never reach.
         state = _run_stages(problem, solver, x, settings, nu0, solved,
                             (SolveError, Interrupted))
-        values = lay.gather(x)
+        phi = grid.discrete.layout.nodal(x, -1.0)
         max_phi = problem.max_abs_phi(x)
         solver.destroy()
         for key in solver.defaults:
@@ -653,7 +647,6 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
         warnings.warn(f"solve options never used: {', '.join('-' + k for k in left)}",
                       stacklevel=2)
     mpi = comm.tompi4py()
-    phi = mpi.bcast(None if values is None else _nodal(grid, values), root=0)
     converged, message, status, vals, stages = state
     setup = grid.setup_time if grid._setup_pending else 0.0
     adapt_f, adapt_time = ((grid.adapt_f, grid.adapt_info['time'])
@@ -691,14 +684,6 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
 def _max():
     from mpi4py import MPI
     return MPI.MAX
-
-
-def _nodal(grid, values, dirichlet=-1.0):
-    """Values by global number -> values at every node (`dirichlet` on the
-    Dirichlet nodes)."""
-    phi = np.full(grid.n_nodes, dirichlet)
-    phi[grid.discrete.layout.order] = values
-    return phi
 
 
 def _run_stages(problem, solver, x, settings, nu0, solved, failures):

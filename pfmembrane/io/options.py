@@ -338,7 +338,7 @@ def check_fits(p, eps=None, start=None, sharp=None):
     fit the box (`p` a `Params`, or a scene and its `eps`; `start` the
     -pf_start choice, by default `p`'s or auto). A sharp start is checked
     only with its `sharp` curve, which the layers above compute
-    (`api._sharp_curve`): without it the shape returned is None."""
+    (`api._sharp_shape`): without it the shape returned is None."""
     from pfmembrane.kernels import initial
     start = start or getattr(p, 'start', 'auto')
     kind = start_kind(p.branch, start)

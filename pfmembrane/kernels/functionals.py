@@ -38,7 +38,7 @@ class Functionals:
         if self._stiffness is None:
             g, s = self.gram, self.eps * F_A * self.ops.w
             self._stiffness = g.upper_data([({'Br': 1.0}, s), ({'Bz': 1.0}, s)],
-                                           blocks={'Br': g.block('Br'), 'Bz': g.block('Bz')})
+                                           blocks=g.blocks(('Br', 'Bz')))
         return self._stiffness
 
     def fields(self, phi):

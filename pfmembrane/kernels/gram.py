@@ -99,6 +99,12 @@ class Gram:
             out.append(blk.reshape(len(c['cells']), self.per_cell, c['m']))
         return out
 
+    def blocks(self, names):
+        """Dense per-chunk blocks of the operators `names`: those kept (`dense`)
+        and the others built for a caller that keeps them as long as it needs."""
+        return {name: self._blocks[name] if name in self._blocks else self.block(name)
+                for name in names}
+
     def upper_data(self, terms, blocks=None):
         """Data of the upper-triangular pattern of sum_q sum_k s_k g_k g_k^T.
 

@@ -45,26 +45,20 @@ from pfmembrane.kernels.functionals import F_A, F_E, Functionals
 
 # int cos^2(m theta) dtheta / (2 pi): the weights w already integrate 2 pi.
 THETA = lambda m: 1.0 if m == 0 else 0.5  # noqa: E731
+# Each mode's Hessian combines all four operators in one row (the Laplacian's
+# r^m Lap + 2 m r^(m-1) d/dr): their blocks are kept for every m.
 OPERATORS = ('B0', 'BL', 'Br', 'Bz')
 RIGID = 0.5  # a mode with more than this fraction of its norm in rigid motions is one
-
-
-def blocks(gram):
-    """Per-triangle dense blocks of the four operators for `gram.upper_data`.
-
-    Not collective. Built once per grid: each mode's Hessian combines all
-    four operators in one row (the Laplacian's r^m Lap + 2 m r^(m-1) d/dr).
-    """
-    return {name: gram.block(name) for name in OPERATORS}
 
 
 class ModeForms:
     """Local mode Hessians H_m and mass products M_m chi at one state.
 
     Not collective. `ops` and `gram` are one grid's rank-local operators and
-    Gram products, `dense` its `blocks`; `phi` the local nodal values (ghosts
-    included), `nu_area` the tension nu_A of L = E - nu . (c - c0). The
-    unknowns are the nodal coefficients chi_a of psi = r^m chi.
+    Gram products, `dense` their blocks of `OPERATORS` (`Gram.blocks`); `phi`
+    the local nodal values (ghosts included), `nu_area` the tension nu_A of
+    L = E - nu . (c - c0). The unknowns are the nodal coefficients chi_a of
+    psi = r^m chi.
     """
 
     def __init__(self, ops, gram, dense, phi, eps, k, c0, nu_area, zc):

@@ -92,8 +92,8 @@ class ModeAnalysis:
     `phi` its nodal values at every node, `nu_area` its tension, `nev` the
     eigenpairs wanted per m. The eigensolver reads its options under `prefix`
     (`-modes_eps_tol`, `-modes_st_mat_mumps_icntl_7`); the MUMPS defaults set
-    there are removed by `destroy`. The per-triangle blocks of the operators
-    (`kernels.modes.blocks`) are built here, once for every m.
+    there are removed by `destroy`. The per-triangle blocks of the four
+    operators (`Gram.blocks`) are taken here, once for every m.
     """
 
     def __init__(self, grid, scene, eps, phi, nu_area, nev=3, prefix='modes_'):
@@ -107,8 +107,9 @@ class ModeAnalysis:
         gA = x.duplicate()
         self.problem.gradients(x, x.duplicate(), gA)
         self.C = [gA, self.problem.grad_V, self.problem.grad_M][:self.problem.ncon]
-        self.forms = kernel.ModeForms(d.ops, d.gram, kernel.blocks(d.gram), self.problem.local(x),
-                                      eps, scene.k, scene.c0, nu_area, scene.zc)
+        self.forms = kernel.ModeForms(d.ops, d.gram, d.gram.blocks(kernel.OPERATORS),
+                                      self.problem.local(x), eps, scene.k, scene.c0, nu_area,
+                                      scene.zc)
         self.K = self.problem.bordered_matrix()
         self._mass = _Mass(self.forms, lay)
         self.B = PETSc.Mat().createPython(self.K.getSizes(), self._mass, comm=self.comm)
@@ -299,14 +300,6 @@ class ModeAnalysis:
             b = mpi.allreduce(rigid @ (w * psi))
             out.append(b @ np.linalg.solve(gram, b) / mpi.allreduce(np.dot(w * psi, psi)))
         return np.array(out)
-
-    def nodal(self, chi):
-        """chi at every node (0 on the Dirichlet nodes), on every rank. Collective."""
-        values = self.layout.gather(chi)
-        values = self.comm.tompi4py().bcast(values, root=0)
-        out = np.zeros(len(self.layout.number))
-        out[self.layout.order] = values
-        return out
 
     def destroy(self):
         """Free the eigensolver and the mass operator, and remove the MUMPS

@@ -116,3 +116,13 @@ class Layout:
         scatter.destroy()
         full.destroy()
         return out
+
+    def nodal(self, vec, dirichlet):
+        """Values at every node, on every rank, of a Vec of free values
+        (`dirichlet` on the Dirichlet nodes). Collective."""
+        values = self.gather(vec)
+        out = None
+        if values is not None:
+            out = np.full(len(self.number), float(dirichlet))
+            out[self.order] = values
+        return self.comm.tompi4py().bcast(out, root=0)

@@ -58,6 +58,8 @@ class Solver:
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0
+        self._ksps = {}  # direct solvers by options prefix (`_direct_ksp`)
+        self._work = problem.create_vec()  # grad L of `_residual`
         self.mpi = problem.mpi
         self.stats = {}
 
@@ -142,7 +144,7 @@ class Solver:
         bordered system [[H, -C^T], [-C, -mu I]] whose inertia has exactly ncon
         negative eigenvalues iff Hess L_A = H + C^T C / mu is positive definite."""
         P = self.P
-        ksp = self._stage1_ksp()
+        ksp = self._direct_ksp('stage1_')
         K = P.bordered_matrix()
         rhs, sol = K.createVecs()
         g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
@@ -319,8 +321,7 @@ class Solver:
         P = self.P
         nl = P.layout.nowned
         _, res = self.evaluate(x)
-        g = self.combine(x.duplicate(), self.nu)
-        out.getArray()[:nl] = g.getArray(readonly=True)
+        out.getArray()[:nl] = self.combine(self._work, self.nu).getArray(readonly=True)
         if P.comm.getRank() == P.comm.getSize() - 1:
             out.getArray()[nl:] = -res
         return out
@@ -352,7 +353,7 @@ class Solver:
         Fp = self._parameter_derivative(x, p, at, K.createVecLeft())
         self.evaluate(x)
         self.P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-        ksp = self._continuation_ksp()
+        ksp = self._direct_ksp('stage2_')
         ksp.setOperators(K)
         Fp.scale(-1.0)
         b = K.createVecLeft()
@@ -374,7 +375,7 @@ class Solver:
         """
         P = self.P
         K = P.bordered_matrix()
-        ksp = self._continuation_ksp()
+        ksp = self._direct_ksp('stage2_')
         F, Fp, a, b = (K.createVecLeft() for _ in range(4))
         tx, tnu, tp = t
         x0, p0 = x.copy(), p
@@ -414,20 +415,14 @@ class Solver:
                              f"(|F| {norm:.2e}); try a shorter step")
         return p, it, self._negative_pivots(ksp), self._split(b)
 
-    def _continuation_ksp(self):
-        """One LDL^T solver for every tangent and corrector step."""
-        if not hasattr(self, '_ksp2'):
-            self._ksp2 = PETSc.KSP().create(self.P.comm)
-            self._configure_direct(self._ksp2, 'stage2_')
-            self._ksp2.setFromOptions()
-        return self._ksp2
-
     def destroy(self):
         """Free the PETSc objects kept between iterations."""
-        for name in ('_ksp1', '_ksp2', '_tao_obj'):
-            obj = self.__dict__.pop(name, None)
-            if obj is not None:
-                obj.destroy()
+        for ksp in self._ksps.values():
+            ksp.destroy()
+        self._ksps.clear()
+        tao = self.__dict__.pop('_tao_obj', None)
+        if tao is not None:
+            tao.destroy()
 
     # -- linear solvers --------------------------------------------------------
     def _set_default(self, name, value):
@@ -449,10 +444,11 @@ class Solver:
         self._set_default(stage + 'mat_mumps_icntl_13', '1')  # inertia in parallel
         self._set_default(stage + 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
 
-    def _stage1_ksp(self):
-        """One LDL^T (MUMPS Cholesky) solver reused by every stage-1 Newton step."""
-        if not hasattr(self, '_ksp1'):
-            self._ksp1 = PETSc.KSP().create(self.P.comm)
-            self._configure_direct(self._ksp1, 'stage1_')
-            self._ksp1.setFromOptions()
-        return self._ksp1
+    def _direct_ksp(self, stage):
+        """One LDL^T (MUMPS Cholesky) solver under the `stage` prefix, kept for
+        every later factorization of the same pattern (numeric only)."""
+        if stage not in self._ksps:
+            ksp = self._ksps[stage] = PETSc.KSP().create(self.P.comm)
+            self._configure_direct(ksp, stage)
+            ksp.setFromOptions()
+        return self._ksps[stage]

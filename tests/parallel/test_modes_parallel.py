@@ -20,7 +20,7 @@ def _spectra(grid, result):
     a = ModeAnalysis(grid, SCENE, EPS, result.phi, result.nu[0])
     try:
         spectra = [a.spectrum(m) for m in range(4)]
-        modes = [a.nodal(s.vectors[0]) for s in spectra]
+        modes = [grid.discrete.layout.nodal(s.vectors[0], 0.0) for s in spectra]
     finally:
         a.destroy()
     return spectra, modes
