@@ -14,7 +14,7 @@ DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-sci
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-fast test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 bench bench-basis bench-scenes branches figures extremes limits clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 phase-diagram bench bench-basis bench-scenes branches figures extremes limits clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -39,6 +39,7 @@ help:
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
 	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
 	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
+	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, the phase diagram, runs/atlas/"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, slepc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
@@ -152,3 +153,7 @@ clean:
 
 crossings: install
 	$(PY) -m pfmembrane.studies.crossings --np $(NP) --eps 0.01 --nodes 84000 --branch stomatocyte oblate prolate --out runs/crossings
+
+# The atlas's branches keep in runs/atlas/branches: a second run redraws from them; FORCE=--force
+phase-diagram: install
+	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups $(NP) --eps 0.02 --nodes 25000 --ds 0.05 --out runs/atlas $(FORCE)

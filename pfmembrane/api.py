@@ -300,6 +300,13 @@ class Tangent(NamedTuple):
 
 # Scene parameters a branch can follow (`Solver.tangent`, `Solver.arclength`).
 CONTINUATION = ('reduced_volume', 'c0', 'radius')
+# A continuation step is retried at half the length when its corrector needs more than
+# CORRECTOR_MAX_IT iterations (3-5 on a regular stretch) or lands farther than JUMP steps
+# from the last point: both are how a long step onto another branch shows (the oblate
+# branch at v 0.74, eps 0.04, reached a torus at v 0.80 in 11 iterations).
+CORRECTOR_MAX_IT = 8
+JUMP = 2.0
+GROW_IT = 4  # a corrector of at most this many iterations lets the next step grow
 
 
 class _Branch:
@@ -331,10 +338,12 @@ class _Branch:
         self.solver.nu = result.nu
 
     def at(self, value):
-        """Put the problem at `value` of the parameter: its targets and C0."""
-        scene = replace(self.scene, **{self.parameter: value})
-        self.P.targets[:2] = (scene.area, scene.volume)
-        self.P.forms.c0 = scene.c0
+        """Put the problem at `value` of the parameter: its targets and C0. Not a
+        Scene: a corrector's iterate may pass where no scene is (v > 1)."""
+        p = {name: getattr(self.scene, name) for name in CONTINUATION}
+        p[self.parameter] = value
+        self.P.targets[:2] = appoptions.targets(p['radius'], p['reduced_volume'])
+        self.P.forms.c0 = p['c0']
 
     def close(self):
         self.solver.destroy()
@@ -366,8 +375,8 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     |(x, p)|^2 = x . x / n + p^2 of the n free nodal values x (their RMS) and
     the parameter p (`Solver.arclength`), the first step in the direction
     of increasing parameter for ds > 0. The step grows by 1.5 after a
-    corrector of at most 3 iterations (to `ds_max`, by default 4 |ds|) and
-    halves after a failed one. Each result's attrs carry the parameter,
+    corrector of at most GROW_IT iterations (to `ds_max`, by default 4 |ds|) and
+    halves after a failed one (`CORRECTOR_MAX_IT`, `JUMP`). Each result's attrs carry the parameter,
     `arclength`, `index_0` (negative eigenvalues of the Hessian of the
     Lagrangian on the constraints' tangent space: the factorization's inertia
     minus the constraints), `dp_ds` and `fold` (1 where dp/ds changed sign
@@ -386,7 +395,10 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
         for _ in range(steps):
             x_old, nu_old = x.copy(), solver.nu.copy()
             try:
-                p_new, its, negative, (bx, bnu) = solver.arclength(x, p, t, step, branch.at)
+                p_new, its, negative, (bx, bnu) = solver.arclength(x, p, t, step, branch.at,
+                                                                   CORRECTOR_MAX_IT)
+                if _distance(x, x_old, p_new - p) > JUMP * step:
+                    raise SolveError("the corrector left the step's neighbourhood")
             except SolveError:
                 x_old.copy(x)
                 solver.nu = nu_old
@@ -410,9 +422,16 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
                           and index != previous[1] and not fold)
             t, previous = t_new, (t_new[2], index)
             yield _point(branch, p, s, index, t_new[2], fold, changed, its, checks)
-            step = min(1.5 * step, ds_max) if its <= 3 else step
+            step = min(1.5 * step, ds_max) if its <= GROW_IT else step
     finally:
         branch.close()
+
+
+def _distance(x, y, dp):
+    """|(x - y, dp)| in the norm of `Solver.arclength`."""
+    d = x.copy()
+    d.axpy(-1.0, y)
+    return math.hypot(d.norm() / math.sqrt(x.getSize()), dp)
 
 
 def _unit(bx, bnu, sign):
@@ -742,11 +761,11 @@ def _event_seconds(mpi, names, stages):
 def phase_field_checks(mpi, xy, phi, attrs):
     """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
     set exists, its topology (`limit.topology`: ``topology``, ``components``,
-    ``genus``) and, for one sphere like the sharp shapes, the energy error and
-    level-set distance against the sharp-interface shape of the scene and the
-    level set's own energy (`limit.level_set_energy`), or for one torus its
-    own energy and radii (`limit.loop_energy`), as attributes. Rank 0
-    computes."""
+    ``genus``) and, for one sphere, the level set's own energy
+    (`limit.level_set_energy`) and, where the scene has a sharp-interface
+    shape, the energy error and level-set distance against it, or for one
+    torus its own energy and radii (`limit.loop_energy`), as attributes.
+    Rank 0 computes."""
     from pfmembrane.analysis import limit
     result = {}
     if mpi.Get_rank() == 0:
@@ -762,10 +781,12 @@ def phase_field_checks(mpi, xy, phi, attrs):
                 energy, radii = limit.loop_energy(ckpt, curve[0], field_h)
                 result.update(level_set_energy=energy, torus_radii=np.asarray(radii))
             else:
+                if shape['label'] == '1 sphere':  # also where no sharp shape exists (a pear)
+                    result['level_set_energy'] = limit.level_set_energy(ckpt, curve,
+                                                                        field_h)[0]
                 c = limit.compare(ckpt, field=field_h, curve=curve)
                 result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],
-                              sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'],
-                              level_set_energy=c['energy_level_set'])
+                              sharp_dist_max=c['dist_max'], sharp_dist_mean=c['dist_mean'])
         except (ValueError, RuntimeError) as e:
             print(f"sharp interface: no comparison ({e})", flush=True)
     return mpi.bcast(result, root=0)

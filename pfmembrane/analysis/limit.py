@@ -29,6 +29,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from pfmembrane.io import checkpoint
+from pfmembrane.io.options import targets
 from pfmembrane.analysis import sharp
 from pfmembrane.analysis.contour import zero_contour
 from pfmembrane.kernels.basis import folded_basis, locality
@@ -240,8 +241,8 @@ def level_set_energy(ckpt, curve, field=None):
     Parameters
     ----------
     ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
-        See `compare`; the area and volume are those of its scene's sharp
-        shape (`reference`).
+        See `compare`; the area and volume are those its ``radius`` and
+        ``reduced_volume`` fix, so a scene without a sharp shape has one too.
     curve : list of ndarray
         The level set of `ckpt` (`level_set`).
     field : PhaseField, optional
@@ -266,8 +267,8 @@ def level_set_energy(ckpt, curve, field=None):
     psi = np.unwrap(np.arctan2(-grad[:, 0], grad[:, 1]))
     psi -= 2.0 * np.pi * np.round(psi[0] / (2.0 * np.pi))
     s = _arc_length(points)
-    target = reference(*_scene(attrs))
-    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], target.area, target.volume,
+    area, volume = targets(float(attrs["radius"]), float(attrs["reduced_volume"]))
+    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], area, volume,
                               float(attrs["c0"]), float(attrs["k"]))
 
 

@@ -52,16 +52,21 @@ class Settings:
     start: str = 'auto'
 
 
+def targets(radius, reduced_volume):
+    """(A0, V0) = (4 pi R^2, v 4/3 pi R^3): the area and volume a scene fixes."""
+    return 4.0 * math.pi * radius ** 2, reduced_volume * 4.0 / 3.0 * math.pi * radius ** 3
+
+
 class Targets:
     """The area and volume a scene (with `radius` and `reduced_volume`) fixes."""
 
     @property
     def area(self):
-        return 4.0 * math.pi * self.radius ** 2
+        return targets(self.radius, self.reduced_volume)[0]
 
     @property
     def volume(self):
-        return self.reduced_volume * 4.0 / 3.0 * math.pi * self.radius ** 3
+        return targets(self.radius, self.reduced_volume)[1]
 
 
 @dataclass

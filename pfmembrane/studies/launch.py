@@ -1,9 +1,12 @@
 """Child runs under mpiexec, for the drivers (tables, benchmarks, the
 stability study, and the in-process drivers started without mpiexec): the
-one place that builds an mpiexec line and the environment it runs in."""
+one place that builds an mpiexec line and the environment it runs in, and
+splits the ranks of such a run into groups."""
 import os
 import subprocess
 import sys
+import traceback
+from contextlib import contextmanager
 
 
 def command(nprocs, *args, module='pfmembrane'):
@@ -37,3 +40,24 @@ def ensure_ranks(nprocs, module, argv):
     status, unless this process already runs under mpiexec or one rank is asked."""
     if nprocs > 1 and not under_mpiexec():
         sys.exit(run(command(nprocs, *argv, module=module)).returncode)
+
+
+def rank_groups(PETSc, groups):
+    """COMM_WORLD split into `groups` groups of consecutive ranks, for drivers whose
+    pieces are independent: (this rank's group, its PETSc communicator, the world's
+    mpi4py communicator)."""
+    world = PETSc.COMM_WORLD.tompi4py()
+    group = world.Get_rank() * groups // world.Get_size()
+    return group, PETSc.Comm(world.Split(group, world.Get_rank())), world
+
+
+@contextmanager
+def all_or_none(world):
+    """Abort every rank of `world` (mpi4py) when this one raises: a rank group whose
+    work failed would leave the others waiting for it in a collective call forever."""
+    try:
+        yield
+    except Exception:
+        traceback.print_exc()
+        sys.stderr.flush()
+        world.Abort(1)

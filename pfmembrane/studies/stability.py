@@ -180,17 +180,15 @@ def main(argv=None):
     launch.ensure_ranks(args.np, 'pfmembrane.studies.stability', sys.argv[1:])
     import pfmembrane as pf
     PETSc = pf.api.petsc(sys.argv[:1])
-    world = PETSc.COMM_WORLD.tompi4py()
-    group = world.Get_rank() * args.groups // world.Get_size()
-    sub = world.Split(group, world.Get_rank())
-    comm = PETSc.Comm(sub)
+    group, comm, world = launch.rank_groups(PETSc, args.groups)
 
     def say(text):
         PETSc.Sys.Print(f"[group {group}] {text}" if args.groups > 1 else text, comm=comm)
 
-    mine = [follow(name, args, comm, say) for name in args.series[group::args.groups]]
+    with launch.all_or_none(world):
+        mine = [follow(name, args, comm, say) for name in args.series[group::args.groups]]
     # each group's first rank hands its series to the world's first rank, in SERIES order
-    gathered = world.gather(mine if sub.Get_rank() == 0 else [], root=0)
+    gathered = world.gather(mine if comm.getRank() == 0 else [], root=0)
     if world.Get_rank() == 0:
         done = {s['name']: s for part in gathered for s in part}
         results = [done[name] for name in args.series]

@@ -1,0 +1,504 @@
+"""The shape atlas: branches in v by pseudo-arclength continuation, and the phase diagram.
+
+    python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
+        [--families prolate oblate stomatocyte] [--c0 X ...] [--ds 0.01] [--steps 120]
+        [--out runs/atlas] [-- SOLVER OPTIONS]
+    python -m pfmembrane.studies.atlas --plot runs/atlas
+
+Each branch is a family (`FAMILIES`) at one reduced spontaneous curvature c0 = 2 C0 R: one
+grid of the spacing of NODES nodes in the paper box, in a box holding the family's sharp
+shapes over its range of v with MARGIN eps (the half box for the up-down symmetric ones), a
+solve at the family's first v from the sharp shape's profile (`-pf_start sharp`), then
+`pf.continuation` in v down to V_MIN and, for a family that starts inside the range, up to
+V_MAX, every point with its energy E, the level set's own Canham-Helfrich energy (the
+sharp-limit estimate), multipliers, stability index on the constraints' tangent space,
+topology and the events: a fold, an index change without one (a bifurcation), a topology
+change. A continuation ends at the range, after STEPS points, after OTHER_TOPOLOGY points
+of a topology without a level-set energy (several spheres), or where its corrector fails.
+
+The phase diagram: at each c0 the least level-set energy over the branches, on a grid of v
+(linear interpolation between the points of a stretch of one topology), its regions, the
+v where the least-energy family changes (the crossing of the two energies) and where each
+branch ends. Writes OUT/branches.md (a table per branch), OUT/diagram.md (regions,
+transitions, ends, time per point), OUT/atlas.json (everything the figures need) and, by
+`--plot` too, OUT/energy.png (E level set against v per c0) and OUT/diagram.png (v across,
+c0 up, regions coloured and labelled, silhouettes of the least-energy shapes).
+
+Each branch is kept in OUT/branches/<family>_c<c0>.h5 as soon as it is followed, and a
+later run reuses it (unless --force): a run that dies loses only the branch it was on.
+The branches are independent: `--groups G` splits the NP ranks into G groups of NP / G, each
+following every G-th branch on its own sub-communicator; the tables are the same whatever
+the grouping.
+"""
+import argparse
+import json
+import math
+import os
+import sys
+import time
+import warnings
+
+import numpy as np
+
+from pfmembrane.io.options import UsageError
+from pfmembrane.scenes import paper_spacing
+from pfmembrane.studies import launch
+
+RADIUS = 0.4
+V_MIN, V_MAX = 0.55, 0.95
+# name: (branch of the start, half box, first v). The stomatocyte starts where its neck
+# is widest (`studies.crossings`) and is followed both ways.
+FAMILIES = {'prolate': ('prolate', True, 0.95), 'oblate': ('oblate', True, 0.95),
+            'stomatocyte': ('stomatocyte', False, 0.62)}
+CURVATURES = [-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 2.5]  # reduced c0 = 2 C0 R
+MARGIN = 5.0      # eps between the box and every sharp shape of a branch
+BOX_STEP = 0.05
+BOX_SAMPLES = 9   # volumes whose sharp shapes size a branch's box
+DV = 0.0025       # v grid of the diagram
+SPHERE = '1 sphere'
+ENERGETIC = (SPHERE, '1 torus')   # the topologies with a level-set energy
+OTHER_TOPOLOGY = 3  # a continuation ends after this many points of another topology
+
+
+def box_of(family, c0, eps):
+    """One box for a branch: its family's sharp shapes at BOX_SAMPLES volumes of its range
+    (those the sharp solver finds) with MARGIN eps, rounded up to BOX_STEP."""
+    from pfmembrane.analysis.sizing import required_box
+    branch, half, first = FAMILIES[family]
+    top = V_MAX if first >= V_MAX else min(V_MAX, first + 0.1)
+    need = np.zeros(2)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)
+        for v in np.linspace(V_MIN, top, BOX_SAMPLES):
+            try:
+                need = np.maximum(need, required_box(branch, [v], eps, RADIUS,
+                                                     c0 / (2 * RADIUS), margin=MARGIN)[0])
+            except (RuntimeError, ValueError):
+                continue
+    if not need.any():
+        raise RuntimeError(f"no sharp {branch} shape at c0 = {c0:g} sizes a box")
+    return tuple(round(math.ceil(s / BOX_STEP - 1e-9) * BOX_STEP, 10) for s in need)
+
+
+def point(res, wall):
+    """What a table row and the diagram keep of a state."""
+    a = res.attrs
+    return dict(v=float(a['reduced_volume']), E=float(a['energy']),
+                level=float(a.get('level_set_energy', math.nan)),
+                nu_A=float(a['nu_area']), nu_V=float(a['nu_volume']),
+                index=int(a.get('index_0', -1)), topology=str(a.get('topology', 'none')),
+                fold=int(a.get('fold', 0)), bifurcation=int(a.get('index_change', 0)),
+                its=int(a.get('stage2_iterations', -1)), converged=int(a['converged']),
+                wall=wall)
+
+
+def branch_path(out, family, c0):
+    return os.path.join(out, 'branches', f"{family}_c{c0:g}.h5")
+
+
+def save(path, branch):
+    """A followed branch to `path` (HDF5: its description as JSON, the nodes and every
+    point's nodal phi), written whole or not at all. Not collective."""
+    import h5py
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    nodes, _, attrs = branch['shapes'][0] if branch['shapes'] else (np.zeros((0, 2)), None, {})
+    with h5py.File(path + '.part', 'w') as f:
+        f.attrs['branch'] = json.dumps({k: v for k, v in branch.items() if k != 'shapes'})
+        f.attrs['scene'] = json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v)
+                                       for k, v in attrs.items()
+                                       if isinstance(v, (str, int, float, np.ndarray,
+                                                         np.number))}, default=float)
+        f['nodes'] = nodes
+        f['phi'] = np.array([phi for _, phi, _ in branch['shapes']] or np.zeros((0, 0)))
+    os.replace(path + '.part', path)
+
+
+def load(path):
+    """The branch `save` wrote."""
+    import h5py
+    with h5py.File(path, 'r') as f:
+        branch = json.loads(f.attrs['branch'])
+        scene = json.loads(f.attrs['scene'])
+        nodes = f['nodes'][()]
+        branch['shapes'] = [(nodes, phi, dict(scene, reduced_volume=p['v']))
+                            for phi, p in zip(f['phi'][()], branch['points'])]
+    branch['box'] = tuple(branch['box'])
+    return branch
+
+
+def follow(family, c0, args, comm, say):
+    """One branch: the solve at its first v, then the continuations, unless OUT holds
+    it (and not --force). Collective on `comm`. Returns its description and points (the
+    start, then each continuation's in order), with the nodes and phi of every point."""
+    path = branch_path(args.out, family, c0)
+    mpi = comm.tompi4py()
+    if not args.force and mpi.bcast(os.path.exists(path), root=0):
+        say(f"-- {family} c0 {c0:g}: {path} (reused)")
+        return load(path)
+    branch = trace(family, c0, args, comm, say)
+    if mpi.Get_rank() == 0:
+        save(path, branch)
+    return branch
+
+
+def trace(family, c0, args, comm, say):
+    """`follow`, computed."""
+    import pfmembrane as pf
+    branch, half, first = FAMILIES[family]
+    t0 = time.perf_counter()
+    described = dict(family=family, c0=c0, half=half, box=(math.nan, math.nan), nodes=0,
+                     eps_min=math.nan, points=[], shapes=[])
+    try:  # the same on every rank of the group: no collective call is left waiting
+        box = box_of(family, c0, args.eps)
+        scene = pf.Scene(reduced_volume=first, c0=c0 / (2 * RADIUS), radius=RADIUS,
+                         box=box, branch=branch, symmetric=half)
+        grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
+        say(f"-- {family} c0 {c0:g}: box {box[0]:g}x{box[1]:g}{' (half)' if half else ''}, "
+            f"{grid!r}")
+        t1 = time.perf_counter()
+        start = pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp'))
+    except (RuntimeError, UsageError) as e:
+        say(f"-- {family} c0 {c0:g}: no start ({e})")
+        return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
+    points = [dict(point(start, time.perf_counter() - t1), arclength=0.0, direction=0)]
+    shapes = [(start.nodes, start.phi, dict(start.attrs))]
+    ends = []
+    if not start.converged:
+        ends.append(f"the start at v {first:g} did not converge ({start.message})")
+    directions = [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX)) if go]
+    for direction in directions if start.converged else []:
+        last, stretch = time.perf_counter(), []
+        for res in pf.continuation(start, 'reduced_volume', direction * args.ds, args.steps,
+                                   options=args.solver):
+            now = time.perf_counter()
+            p = dict(point(res, now - last), arclength=res.attrs['arclength'],
+                     direction=direction)
+            last = now
+            stretch.append((p, (res.nodes, res.phi, dict(res.attrs))))
+            say(f"   {family} c0 {c0:g}: v {p['v']:.4f} E {p['E']:.6f} level {p['level']:.6f} "
+                f"index {p['index']} {p['topology']} its {p['its']} {p['wall']:.2f} s")
+            if not V_MIN - 1e-9 <= p['v'] <= V_MAX + 1e-9:
+                ends.append(f"{'down' if direction < 0 else 'up'}: left the range at v "
+                            f"{p['v']:.4f}")
+                break
+            if all(q['topology'] not in ENERGETIC for q, _ in stretch[-OTHER_TOPOLOGY:]) \
+                    and len(stretch) >= OTHER_TOPOLOGY:
+                ends.append(f"{'down' if direction < 0 else 'up'}: {p['topology']} at v "
+                            f"{p['v']:.4f}, {OTHER_TOPOLOGY} points without a level-set energy")
+                break
+        else:
+            v_end = stretch[-1][0]['v'] if stretch else first
+            ends.append(f"{'down' if direction < 0 else 'up'}: stopped at v {v_end:.4f} "
+                        f"({'after ' + str(args.steps) + ' points' if len(stretch) == args.steps else 'the corrector failed'})")
+        points += [p for p, _ in stretch]
+        shapes += [s for _, s in stretch]
+    return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min, points=points,
+                ends=ends, shapes=shapes, time=time.perf_counter() - t0)
+
+
+def paths(points):
+    """A branch's continuations in the order they went, each from the start (the
+    points: the start, then each direction's in order)."""
+    return [points[:1] + [p for p in points if p['direction'] == d]
+            for d in dict.fromkeys(p['direction'] for p in points[1:])] or [points[:1]]
+
+
+def events(points):
+    """Per point, the events since the point before it on its continuation."""
+    out, before = [], {}
+    for p in points:
+        e, last = [], before.get(p['direction'], points[0] if p['direction'] else None)
+        before[p['direction']] = p
+        if p['fold']:
+            e.append('fold')
+        if p['bifurcation']:
+            e.append('index change')
+        if last is not None and last['topology'] != p['topology']:
+            e.append(f"topology {last['topology']} -> {p['topology']}")
+        out.append(', '.join(e))
+    return out
+
+
+HEADER = ('| v | E | E level set | nu_A | nu_V | index | topology | events | its | s '
+          '| arclength |')
+
+
+def table(branch):
+    rows = [HEADER, '|' + '---|' * (HEADER.count('|') - 1)]
+    for p, e in zip(branch['points'], events(branch['points'])):
+        rows.append(f"| {p['v']:.4f} | {p['E']:.6f} | {p['level']:.6f} | {p['nu_A']:.4f} "
+                    f"| {p['nu_V']:.3f} | {p['index']} | {p['topology']} | {e} | {p['its']} "
+                    f"| {p['wall']:.2f} | {p['direction'] * p['arclength']:+.4f} |")
+    return rows
+
+
+def stretches(points):
+    """Runs of consecutive points of one continuation, one topology and finite
+    level-set energies."""
+    runs = []
+    for path in paths(points):
+        current = []
+        for p in path:
+            if current and (p['topology'] != current[-1]['topology']
+                            or not math.isfinite(p['level'])):
+                runs.append(current)
+                current = []
+            if math.isfinite(p['level']):
+                current.append(p)
+        runs.append(current)
+    return [r for r in runs if len(r) > 1]
+
+
+def label(family, topology):
+    return family if topology == SPHERE else f"{family} ({topology})"
+
+
+def least(branches, c0, vs):
+    """At each v of `vs`: (label, level-set energy) of the least over the branches at c0,
+    ('', nan) where none reaches."""
+    best = [('', math.inf)] * len(vs)
+    for b in (b for b in branches if b['c0'] == c0):
+        for run in stretches(b['points']):
+            v = np.array([p['v'] for p in run])
+            e = np.array([p['level'] for p in run])
+            for i, x in enumerate(vs):
+                for j in range(len(v) - 1):  # every piece over x: a fold has two
+                    lo, hi = sorted((v[j], v[j + 1]))
+                    if lo <= x <= hi and hi > lo:
+                        y = e[j] + (e[j + 1] - e[j]) * (x - v[j]) / (v[j + 1] - v[j])
+                        if y < best[i][1]:
+                            best[i] = (label(b['family'], run[0]['topology']), y)
+    return [(name, y if math.isfinite(y) else math.nan) for name, y in best]
+
+
+def grid_v():
+    return np.round(np.arange(V_MIN, V_MAX + DV / 2, DV), 6)
+
+
+def transitions(best, vs):
+    """(v, below, above) where the least-energy label changes along v."""
+    return [(0.5 * (vs[i] + vs[i + 1]), best[i][0], best[i + 1][0])
+            for i in range(len(vs) - 1) if best[i][0] != best[i + 1][0]]
+
+
+def write(branches, args, out, wall):
+    """OUT/branches.md, OUT/diagram.md, OUT/atlas.json, the figures. Not collective."""
+    curvatures = sorted({b['c0'] for b in branches})
+    head = (f"eps {args.eps:g}, uniform grids of the spacing of {args.nodes} nodes in the "
+            f"paper box, R = {RADIUS:g}, k = 1; {args.np} MPI ranks in {args.groups} "
+            f"group(s) on {os.cpu_count()} cores; wall {wall:.0f} s.")
+    command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
+               f"--eps {args.eps:g} --nodes {args.nodes} --ds {args.ds:g} --steps {args.steps}"
+               f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
+               f" --out {args.out}`")
+    lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
+             "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
+             "nan where it is not one sphere or torus); index: negative eigenvalues of the "
+             "Hessian of the Lagrangian on the constraints' tangent space (the bordered "
+             "factorization's inertia); events: since the point before on the same continuation; "
+             "arclength: signed, negative down in v from the first point.\n"]
+    for b in branches:
+        pts = b['points']
+        lines += [f"\n## {b['family']}, c0 = {b['c0']:g}\n",
+                  f"Box {b['box'][0]:g} x {b['box'][1]:g}{' (half box)' if b['half'] else ''}, "
+                  f"{b['nodes']} nodes (eps_min {b['eps_min']:.4g}); {len(pts)} points in "
+                  f"{b['time']:.1f} s; median step {median_step(b):.2f} s. "
+                  f"Ends: {'; '.join(b['ends']) or 'none'}.\n"] + table(b)
+    with open(os.path.join(out, 'branches.md'), 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    vs = grid_v()
+    lines = ["# The phase diagram of the spontaneous-curvature model\n", head + "\n",
+             f"Regenerate: {command}.\n",
+             "At each c0 (reduced, 2 C0 R) the state of least level-set energy over the "
+             f"branches on a grid of v spaced {DV:g}; transitions: the v between two grid "
+             "volumes where it changes (to within the grid spacing); ends: where each branch "
+             "stopped, and its folds (the index across each). SBL at c0 = 0: prolate above 0.652, oblate down to 0.592, "
+             "stomatocyte below.\n",
+             "| c0 | regions (v from high to low) | transitions v | ends |", "|---|---|---|---|"]
+    for c0 in curvatures:
+        best = least(branches, c0, vs)
+        regions, start = [], None
+        for i in range(len(vs) - 1, -1, -1):
+            if i == len(vs) - 1 or best[i][0] != best[i + 1][0]:
+                regions.append([best[i][0] or 'none', vs[i], vs[i]])
+            regions[-1][2] = vs[i]
+        text = '; '.join(f"{n} {lo:.4f}-{hi:.4f}" for n, hi, lo in regions)
+        trans = ', '.join(f"{v:.4f} ({a or 'none'} / {b or 'none'})"
+                          for v, a, b in transitions(best, vs))
+        ends = '; '.join(f"{b['family']}: {', '.join(b['ends'] + folds(b))}" for b in branches
+                         if b['c0'] == c0)
+        lines.append(f"| {c0:g} | {text} | {trans} | {ends} |")
+    points = sum(len(b['points']) for b in branches)
+    lines += ["", f"{points} points on {len(branches)} branches in {wall:.0f} s wall: "
+              f"{wall / max(points, 1):.2f} s per point ({args.np} ranks); the median "
+              f"continuation step {np.median([median_step(b) for b in branches]):.2f} s."]
+    with open(os.path.join(out, 'diagram.md'), 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    with open(os.path.join(out, 'atlas.json'), 'w') as f:
+        json.dump(dict(args=dict(eps=args.eps, nodes=args.nodes, np=args.np), wall=wall,
+                       branches=[{k: v for k, v in b.items() if k != 'shapes'}
+                                 for b in branches],
+                       silhouettes=silhouettes(branches)), f, indent=1)
+    plot(out)
+
+
+def folds(branch):
+    """The folds of a branch, as text: where its continuations turned back in v."""
+    return [f"fold at v {p['v']:.4f} (index {before['index']} -> {p['index']})"
+            for path in paths(branch['points']) for before, p in zip(path, path[1:])
+            if p['fold']]
+
+
+def median_step(branch):
+    steps = [p['wall'] for p in branch['points'] if p['direction']]
+    return float(np.median(steps)) if steps else math.nan
+
+
+def silhouettes(branches):
+    """The level set of the least-energy state nearest the middle of each region of each
+    c0, as (c0, v, label, [[r...], [z...]] per piece) about its centroid."""
+    from pfmembrane.analysis import limit
+    from pfmembrane.io.checkpoint import Checkpoint
+    vs, out = grid_v(), []
+    for c0 in sorted({b['c0'] for b in branches}):
+        best = least(branches, c0, vs)
+        names = [n for n in dict.fromkeys(n for n, _ in best) if n]
+        for name in names:
+            where = [vs[i] for i, (n, _) in enumerate(best) if n == name]
+            mid = where[len(where) // 2]
+            candidates = [(abs(p['v'] - mid), b, i) for b in branches if b['c0'] == c0
+                          for i, p in enumerate(b['points'])
+                          if label(b['family'], p['topology']) == name]
+            _, b, i = min(candidates, key=lambda t: t[0])
+            nodes, phi, attrs = b['shapes'][i]
+            ck = Checkpoint(nodes=nodes, phi=phi, attrs=attrs).unfolded()
+            try:
+                curve = limit.level_set(ck)
+            except (ValueError, RuntimeError):
+                continue
+            zc = 0.5 * float(attrs['box'][1])
+            out.append(dict(c0=c0, v=b['points'][i]['v'], label=name,
+                            pieces=[[c[:, 0].tolist(), (c[:, 1] - zc).tolist()]
+                                    for c in curve]))
+    return out
+
+
+COLOURS = {'prolate': '#4c72b0', 'oblate': '#dd8452', 'stomatocyte': '#55a868'}
+
+
+def plot(out):
+    """OUT/energy.png and OUT/diagram.png from OUT/atlas.json. Not collective."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    with open(os.path.join(out, 'atlas.json')) as f:
+        data = json.load(f)
+    branches = data['branches']
+    curvatures = sorted({b['c0'] for b in branches})
+    cols = min(4, len(curvatures))
+    rows = math.ceil(len(curvatures) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.2 * rows), squeeze=False)
+    for ax, c0 in zip(axes.flat, curvatures):
+        for b in (b for b in branches if b['c0'] == c0):
+            for run in stretches(b['points']):
+                ax.plot([p['v'] for p in run], [p['level'] for p in run], '-',
+                        color=COLOURS.get(b['family'], 'k'),
+                        label=label(b['family'], run[0]['topology']))
+        ax.set_title(f"c0 = {c0:g}")
+        ax.set_xlabel('v')
+        ax.set_ylabel('E level set')
+        ax.legend(fontsize=6)
+    for ax in list(axes.flat)[len(curvatures):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, 'energy.png'), dpi=120)
+    plt.close(fig)
+
+    vs = grid_v()
+    fig, ax = plt.subplots(figsize=(9, 7))
+    step = np.diff(curvatures).min() if len(curvatures) > 1 else 1.0
+    names = []
+    for c0 in curvatures:
+        best = least(branches, c0, vs)
+        for i, (name, _) in enumerate(best):
+            if not name:
+                continue
+            family = name.split(' ')[0]
+            if name not in names:
+                names.append(name)
+            ax.add_patch(matplotlib.patches.Rectangle(
+                (vs[i] - DV / 2, c0 - step / 2), DV, step, linewidth=0,
+                facecolor=COLOURS.get(family, '0.7'), alpha=0.35 if name == family else 0.6))
+        for v, a, b in transitions(best, vs):
+            ax.plot(v, c0, 'k|', markersize=12)
+    ax.set_xlim(V_MIN - DV, V_MAX + DV)
+    ax.set_ylim(curvatures[0] - step / 2, curvatures[-1] + step / 2)
+    # silhouettes at one scale in both directions: R spans 0.15 of a row
+    box = ax.get_window_extent()
+    per_c0 = box.height / np.ptp(ax.get_ylim())
+    per_v = box.width / np.ptp(ax.get_xlim())
+    zscale = 0.15 * step / RADIUS
+    rscale = zscale * per_c0 / per_v
+    for s in data['silhouettes']:
+        for r, z in s['pieces']:
+            r, z = np.asarray(r), np.asarray(z)
+            for side in (1, -1):  # the meridian and its mirror image across the axis
+                ax.plot(s['v'] + side * rscale * r, s['c0'] + zscale * z, 'k-', linewidth=0.8)
+        ax.annotate(s['label'], (s['v'], s['c0'] - 0.45 * step), ha='center', fontsize=7)
+    ax.set_xlabel('reduced volume v')
+    ax.set_ylabel('reduced spontaneous curvature c0 = 2 C0 R')
+    ax.set_title('least level-set energy (phase fields, eps '
+                 f"{data['args']['eps']:g}); | transitions")
+    fig.savefig(os.path.join(out, 'diagram.png'), dpi=130, bbox_inches='tight')
+    plt.close(fig)
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.atlas',
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument('--np', type=int, default=2, help='MPI ranks')
+    ap.add_argument('--groups', type=int, default=1, help='rank groups, one branch each')
+    ap.add_argument('--eps', type=float, default=0.02)
+    ap.add_argument('--nodes', type=int, default=40000, help='nodes in the paper box (scaled)')
+    ap.add_argument('--families', nargs='+', default=list(FAMILIES), choices=list(FAMILIES))
+    ap.add_argument('--c0', type=float, nargs='+', default=CURVATURES,
+                    help='reduced spontaneous curvatures 2 C0 R')
+    ap.add_argument('--ds', type=float, default=0.01, help='first arclength step')
+    ap.add_argument('--steps', type=int, default=120, help='most points per continuation')
+    ap.add_argument('--out', default=os.path.join('runs', 'atlas'))
+    ap.add_argument('--force', action='store_true',
+                    help='follow every branch again, even one OUT/branches holds')
+    ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
+    ap.add_argument('options', nargs='*', metavar='-- OPTION')
+    args = ap.parse_args(argv)
+    if args.plot:
+        plot(args.plot)
+        return 0
+    args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
+    if args.groups < 1 or args.np % args.groups:
+        ap.error(f"--groups {args.groups} does not divide --np {args.np}")
+    launch.ensure_ranks(args.np, 'pfmembrane.studies.atlas', sys.argv[1:])
+    import pfmembrane as pf
+    PETSc = pf.api.petsc(sys.argv[:1])
+    group, comm, world = launch.rank_groups(PETSc, args.groups)
+
+    def say(text):
+        PETSc.Sys.Print(f"[group {group}] {text}" if args.groups > 1 else text, comm=comm)
+
+    t0 = time.perf_counter()
+    todo = [(f, c0) for c0 in args.c0 for f in args.families]
+    with launch.all_or_none(world):
+        mine = [follow(f, c0, args, comm, say) for f, c0 in todo[group::args.groups]]
+    gathered = world.gather(mine if comm.getRank() == 0 else [], root=0)
+    wall = time.perf_counter() - t0
+    if world.Get_rank() == 0:
+        done = {(b['family'], b['c0']): b for part in gathered for b in part}
+        os.makedirs(args.out, exist_ok=True)
+        write([done[key] for key in todo], args, args.out, wall)
+        print(os.path.join(args.out, 'diagram.md'))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

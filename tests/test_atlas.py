@@ -1,0 +1,140 @@
+"""The shape atlas (pfmembrane.studies.atlas): what the phase diagram makes of branches
+(least energy, its regions and transitions, events, continuations of a branch), the
+branch files a later run reuses, and a small atlas run end to end."""
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pfmembrane.studies import atlas
+
+
+def _point(v, level, topology='1 sphere', direction=-1, fold=0, bifurcation=0, index=0):
+    return dict(v=v, E=level + 1.0, level=level, nu_A=1.0, nu_V=-1.0, index=index,
+                topology=topology, fold=fold, bifurcation=bifurcation, its=3, converged=1,
+                wall=0.1, arclength=abs(0.95 - v), direction=direction)
+
+
+def _branch(family, c0, points):
+    return dict(family=family, c0=c0, points=points, ends=[], box=(1.0, 1.0), half=True,
+                nodes=10, eps_min=0.01, time=1.0, shapes=[])
+
+
+def _linear(family, c0, e95, slope, vs=np.linspace(0.95, 0.55, 9)):
+    """A branch of energies e95 + slope (0.95 - v), the start at v = 0.95 then down."""
+    pts = [_point(v, e95 + slope * (0.95 - v), direction=-1 if i else 0)
+           for i, v in enumerate(vs)]
+    return _branch(family, c0, pts)
+
+
+def test_the_least_energy_changes_where_two_branches_cross():
+    """Two straight branches crossing at v = 0.65: the least is the lower one on either
+    side and the transition lies within a grid step of the crossing."""
+    a = _linear('prolate', 0.0, 7.0, 10.0)        # 7 + 10 (0.95 - v)
+    b = _linear('oblate', 0.0, 8.5, 5.0)          # crosses a at 0.95 - v = 0.3
+    vs = atlas.grid_v()
+    best = atlas.least([a, b], 0.0, vs)
+    assert best[-1][0] == 'prolate' and best[0][0] == 'oblate'
+    (v, below, above), = atlas.transitions(best, vs)
+    assert (below, above) == ('oblate', 'prolate')
+    assert abs(v - 0.65) <= atlas.DV
+    i = int(np.argmin(abs(vs - 0.8)))
+    assert best[i][1] == pytest.approx(7.0 + 10.0 * 0.15)
+
+
+def test_a_stretch_ends_at_a_topology_change_and_a_fold_counts_both_pieces():
+    """A sphere stretch, then a torus: two stretches labelled apart; past a fold both
+    pieces over a v compete and the lower wins."""
+    pts = [_point(0.95, 7.0, direction=0), _point(0.85, 8.0), _point(0.75, 9.0),
+           _point(0.70, 9.5, '1 torus'), _point(0.60, 10.0, '1 torus')]
+    runs = atlas.stretches(pts)
+    assert [len(r) for r in runs] == [3, 2]
+    best = atlas.least([_branch('oblate', 0.0, pts)], 0.0, atlas.grid_v())
+    labels = {name for name, _ in best}
+    assert labels == {'oblate', 'oblate (1 torus)', ''}   # '' between 0.75 and 0.70
+    folded = [_point(0.95, 7.0, direction=0), _point(0.80, 8.0), _point(0.75, 8.4, fold=1),
+              _point(0.80, 7.5)]     # the piece back up is lower at 0.80 > v > 0.75
+    best = atlas.least([_branch('oblate', 0.0, folded)], 0.0, np.array([0.78]))
+    assert best[0][1] == pytest.approx(7.5 + (8.4 - 7.5) * (0.80 - 0.78) / 0.05)
+
+
+def test_events_and_continuations_follow_each_direction_from_the_start():
+    start = _point(0.62, 12.0, direction=0)
+    down = [_point(0.60, 12.1, direction=-1), _point(0.58, 12.2, '1 torus', direction=-1)]
+    up = [_point(0.64, 11.9, direction=1, fold=1, index=1)]
+    pts = [start] + down + up
+    assert [len(p) for p in atlas.paths(pts)] == [3, 2]
+    assert atlas.events(pts) == ['', '', 'topology 1 sphere -> 1 torus', 'fold']
+    assert atlas.events([start]) == ['']
+
+
+def test_a_branch_file_gives_back_the_branch(tmp_path):
+    nodes = np.random.default_rng(0).random((5, 2))
+    b = _linear('prolate', 0.5, 7.0, 10.0, vs=[0.95, 0.9])
+    b['shapes'] = [(nodes, np.arange(5.0) + i, dict(reduced_volume=v, box=np.array([1.0, 2.0]),
+                                                   branch='prolate'))
+                   for i, v in enumerate((0.95, 0.9))]
+    path = tmp_path / 'b' / 'prolate_c0.5.h5'
+    atlas.save(str(path), b)
+    again = atlas.load(str(path))
+    assert again['points'] == b['points'] and again['c0'] == 0.5
+    np.testing.assert_array_equal(again['shapes'][1][1], np.arange(5.0) + 1)
+    np.testing.assert_array_equal(again['shapes'][0][0], nodes)
+    assert again['shapes'][1][2]['reduced_volume'] == 0.9
+    empty = dict(b, points=[], shapes=[], ends=['no start (x)'])
+    atlas.save(str(path), empty)
+    assert atlas.load(str(path))['ends'] == ['no start (x)']
+
+
+SMALL = ['--eps', '0.06', '--nodes', '3000', '--families', 'prolate', 'oblate', '--c0', '0',
+         '1', '--ds', '0.04', '--steps', '6']
+
+
+def _numbers(out):
+    """Every point's values but its seconds and iterations, from OUT/atlas.json."""
+    with open(out / 'atlas.json') as f:
+        branches = json.load(f)['branches']
+    return [[{k: v for k, v in p.items() if k not in ('wall', 'its')} for p in b['points']]
+            for b in branches]
+
+
+def _same(one, two, rtol=1e-8):
+    """Equal counts and labels, values to `rtol`: threaded BLAS sums in its own order,
+    which moves the last digits between runs (measured: 7e-14 relative)."""
+    assert [len(b) for b in one] == [len(b) for b in two]
+    for p, q in ((p, q) for a, b in zip(one, two) for p, q in zip(a, b)):
+        assert {k: v for k, v in p.items() if isinstance(v, str) or k in ('index', 'fold')} \
+            == {k: v for k, v in q.items() if isinstance(v, str) or k in ('index', 'fold')}
+        for k in ('v', 'E', 'level', 'nu_A', 'nu_V', 'arclength'):
+            assert math.isclose(p[k], q[k], rel_tol=rtol, abs_tol=rtol) or \
+                (math.isnan(p[k]) and math.isnan(q[k])), (k, p[k], q[k])
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_two_groups_of_one_rank_give_the_one_rank_atlas(tmp_path, child_env, root):
+    """Four branches (prolate and oblate at c0 0 and 1), up to 7 points each, on two groups of
+    one rank and on one rank: the same points; the figures and tables are written, and a
+    second run reuses the branch files."""
+    from pfmembrane.studies.launch import under_mpiexec
+    if under_mpiexec():
+        pytest.skip('launches its own mpiexec')
+    cmd = [sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL]
+    for np_, groups, out in ((1, 1, 'one'), (2, 2, 'two')):
+        done = subprocess.run(cmd + ['--np', str(np_), '--groups', str(groups), '--out',
+                                     str(tmp_path / out)], cwd=root, env=child_env,
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr[-2000:]
+    assert '[group 1]' in done.stdout
+    one, two = _numbers(tmp_path / 'one'), _numbers(tmp_path / 'two')
+    assert len(one) == 4 and all(len(b) >= 5 for b in one)
+    _same(one, two)
+    for name in ('branches.md', 'diagram.md', 'energy.png', 'diagram.png'):
+        assert (tmp_path / 'two' / name).stat().st_size > 0
+    again = subprocess.run(cmd + ['--np', '1', '--out', str(tmp_path / 'one')], cwd=root,
+                           env=child_env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0 and again.stdout.count('(reused)') == 4
+    _same(_numbers(tmp_path / 'one'), one, rtol=0.0)
