@@ -302,8 +302,8 @@ class Tangent(NamedTuple):
 CONTINUATION = ('reduced_volume', 'c0', 'radius')
 # A continuation step is retried at half the length when its corrector needs more than
 # CORRECTOR_MAX_IT iterations (3-5 on a regular stretch) or lands farther than JUMP steps
-# from the last point: both are how a long step onto another branch shows (the oblate
-# branch at v 0.74, eps 0.04, reached a torus at v 0.80 in 11 iterations).
+# from the last point: both are how a long step onto another branch shows
+# (runs/atlas/notes.md).
 CORRECTOR_MAX_IT = 8
 JUMP = 2.0
 GROW_IT = 4  # a corrector of at most this many iterations lets the next step grow
@@ -375,13 +375,13 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     |(x, p)|^2 = x . x / n + p^2 of the n free nodal values x (their RMS) and
     the parameter p (`Solver.arclength`), the first step in the direction
     of increasing parameter for ds > 0. The step grows by 1.5 after a
-    corrector of at most GROW_IT iterations (to `ds_max`, by default 4 |ds|) and
-    halves after a failed one (`CORRECTOR_MAX_IT`, `JUMP`). Each result's attrs carry the parameter,
-    `arclength`, `index_0` (negative eigenvalues of the Hessian of the
-    Lagrangian on the constraints' tangent space: the factorization's inertia
-    minus the constraints), `dp_ds` and `fold` (1 where dp/ds changed sign
-    since the previous point) and `index_change` (1 where index_0 changed
-    without a fold: a bifurcation passed).
+    corrector of at most GROW_IT iterations (to `ds_max`, by default 4 |ds|)
+    and halves after a failed one (`CORRECTOR_MAX_IT`, `JUMP`). Each result's
+    attrs carry the parameter, `arclength`, `index_0` (negative eigenvalues
+    of the Hessian of the Lagrangian on the constraints' tangent space: the
+    factorization's inertia minus the constraints), `dp_ds` and `fold` (1
+    where dp/ds changed sign since the previous point) and `index_change` (1
+    where index_0 changed without a fold: a bifurcation passed).
     """
     from pfmembrane.parallel.solver import SolveError
     branch = _Branch(result, parameter, options, prefix)

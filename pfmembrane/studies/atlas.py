@@ -1,8 +1,8 @@
 """The shape atlas: branches in v by pseudo-arclength continuation, and the phase diagram.
 
     python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
-        [--families prolate oblate stomatocyte] [--c0 X ...] [--ds 0.01] [--steps 120]
-        [--out runs/atlas] [-- SOLVER OPTIONS]
+        [--families prolate oblate stomatocyte] [--c0 X ...] [--ds 0.05] [--steps 120]
+        [--box Rb,Zb] [--out runs/atlas] [--force] [-- SOLVER OPTIONS]
     python -m pfmembrane.studies.atlas --plot runs/atlas
 
 Each branch is a family (`FAMILIES`) at one reduced spontaneous curvature c0 = 2 C0 R: one
@@ -149,7 +149,7 @@ def trace(family, c0, args, comm, say):
     described = dict(family=family, c0=c0, half=half, box=(math.nan, math.nan), nodes=0,
                      eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
-        box = box_of(family, c0, args.eps)
+        box = args.box or box_of(family, c0, args.eps)
         scene = pf.Scene(reduced_volume=first, c0=c0 / (2 * RADIUS), radius=RADIUS,
                          box=box, branch=branch, symmetric=half)
         grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
@@ -219,15 +219,16 @@ def events(points):
     return out
 
 
-HEADER = ('| v | E | E level set | nu_A | nu_V | index | topology | events | its | s '
-          '| arclength |')
+HEADER = ('| v | E | E level set | nu_A | nu_V | index | topology | events | converged | its '
+          '| s | arclength |')
 
 
 def table(branch):
     rows = [HEADER, '|' + '---|' * (HEADER.count('|') - 1)]
     for p, e in zip(branch['points'], events(branch['points'])):
         rows.append(f"| {p['v']:.4f} | {p['E']:.6f} | {p['level']:.6f} | {p['nu_A']:.4f} "
-                    f"| {p['nu_V']:.3f} | {p['index']} | {p['topology']} | {e} | {p['its']} "
+                    f"| {p['nu_V']:.3f} | {p['index']} | {p['topology']} | {e} "
+                    f"| {p['converged']} | {p['its']} "
                     f"| {p['wall']:.2f} | {p['direction'] * p['arclength']:+.4f} |")
     return rows
 
@@ -290,7 +291,8 @@ def write(branches, args, out, wall):
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
                f"--eps {args.eps:g} --nodes {args.nodes} --ds {args.ds:g} --steps {args.steps}"
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
-               f" --out {args.out}`")
+               + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
+               + f" --out {args.out}`")
     lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
              "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
              "nan where it is not one sphere or torus); index: negative eigenvalues of the "
@@ -464,9 +466,11 @@ def main(argv=None):
     ap.add_argument('--families', nargs='+', default=list(FAMILIES), choices=list(FAMILIES))
     ap.add_argument('--c0', type=float, nargs='+', default=CURVATURES,
                     help='reduced spontaneous curvatures 2 C0 R')
-    ap.add_argument('--ds', type=float, default=0.01, help='first arclength step')
+    ap.add_argument('--ds', type=float, default=0.05, help='first arclength step')
     ap.add_argument('--steps', type=int, default=120, help='most points per continuation')
     ap.add_argument('--out', default=os.path.join('runs', 'atlas'))
+    ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
+                    help="Rb,Zb of every branch (default: its family's sharp shapes')")
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
