@@ -83,8 +83,9 @@ check: install
 	$(MPIEXEC) -n 2 $(PY) -m pfmembrane -options_file options/discocyte.opts \
 	  -pf_nodes 3000 -pf_eps 0.06 -pf_output runs/check.h5
 
+# Two test files at a time (pytest-xdist), each file's tests in order on one worker.
 test: install
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(MPIEXEC) -n 2 $(PY) -m pytest -q tests/parallel
 
 # No application runs and no mpiexec with more than one rank (markers in tests/conftest.py).
