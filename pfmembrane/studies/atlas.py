@@ -485,24 +485,13 @@ def main(argv=None):
     args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
     if args.groups < 1 or args.np % args.groups:
         ap.error(f"--groups {args.groups} does not divide --np {args.np}")
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.atlas', sys.argv[1:])
-    import pfmembrane as pf
-    PETSc = pf.api.petsc(sys.argv[:1])
-    group, comm, world = launch.rank_groups(PETSc, args.groups)
-
-    def say(text):
-        PETSc.Sys.Print(f"[group {group}] {text}" if args.groups > 1 else text, comm=comm)
-
-    t0 = time.perf_counter()
     todo = [(f, c0) for c0 in args.c0 for f in args.families]
-    with launch.all_or_none(world):
-        mine = [follow(f, c0, args, comm, say) for f, c0 in todo[group::args.groups]]
-    gathered = world.gather(mine if comm.getRank() == 0 else [], root=0)
-    wall = time.perf_counter() - t0
-    if world.Get_rank() == 0:
-        done = {(b['family'], b['c0']): b for part in gathered for b in part}
+    t0 = time.perf_counter()
+    branches = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.atlas', todo,
+                                lambda piece, comm, say: follow(*piece, args, comm, say))
+    if branches is not None:
         os.makedirs(args.out, exist_ok=True)
-        write([done[key] for key in todo], args, args.out, wall)
+        write(branches, args, args.out, time.perf_counter() - t0)
         print(os.path.join(args.out, 'diagram.md'))
     return 0
 

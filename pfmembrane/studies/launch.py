@@ -42,13 +42,29 @@ def ensure_ranks(nprocs, module, argv):
         sys.exit(run(command(nprocs, *argv, module=module)).returncode)
 
 
-def rank_groups(PETSc, groups):
-    """COMM_WORLD split into `groups` groups of consecutive ranks, for drivers whose
-    pieces are independent: (this rank's group, its PETSc communicator, the world's
-    mpi4py communicator)."""
+def on_groups(nprocs, groups, module, pieces, work):
+    """`work(piece, comm, say)` for every piece, on `groups` groups of consecutive ranks
+    of `nprocs` (under mpiexec, started if need be: `ensure_ranks`), group g taking the
+    pieces g, g + groups, ...; `say` prints once per group, tagged with it. Returns the
+    results in the order of `pieces` on the world's first rank, None on the others. A
+    failure on one rank aborts them all (`all_or_none`)."""
+    ensure_ranks(nprocs, module, sys.argv[1:])
+    import pfmembrane as pf
+    PETSc = pf.api.petsc(sys.argv[:1])
     world = PETSc.COMM_WORLD.tompi4py()
     group = world.Get_rank() * groups // world.Get_size()
-    return group, PETSc.Comm(world.Split(group, world.Get_rank())), world
+    comm = PETSc.Comm(world.Split(group, world.Get_rank()))
+
+    def say(text):
+        PETSc.Sys.Print(f"[group {group}] {text}" if groups > 1 else text, comm=comm)
+
+    with all_or_none(world):
+        mine = [(i, work(pieces[i], comm, say)) for i in range(group, len(pieces), groups)]
+    gathered = world.gather(mine if comm.getRank() == 0 else [], root=0)
+    if world.Get_rank() != 0:
+        return None
+    done = dict(pair for part in gathered for pair in part)
+    return [done[i] for i in range(len(pieces))]
 
 
 @contextmanager

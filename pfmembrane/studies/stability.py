@@ -177,21 +177,9 @@ def main(argv=None):
     args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
     if args.groups < 1 or args.np % args.groups:
         ap.error(f"--groups {args.groups} does not divide --np {args.np}")
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.stability', sys.argv[1:])
-    import pfmembrane as pf
-    PETSc = pf.api.petsc(sys.argv[:1])
-    group, comm, world = launch.rank_groups(PETSc, args.groups)
-
-    def say(text):
-        PETSc.Sys.Print(f"[group {group}] {text}" if args.groups > 1 else text, comm=comm)
-
-    with launch.all_or_none(world):
-        mine = [follow(name, args, comm, say) for name in args.series[group::args.groups]]
-    # each group's first rank hands its series to the world's first rank, in SERIES order
-    gathered = world.gather(mine if comm.getRank() == 0 else [], root=0)
-    if world.Get_rank() == 0:
-        done = {s['name']: s for part in gathered for s in part}
-        results = [done[name] for name in args.series]
+    results = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.stability',
+                               args.series, lambda name, comm, say: follow(name, args, comm, say))
+    if results is not None:
         os.makedirs(args.out, exist_ok=True)
         write(results, args, args.out)
         print(os.path.join(args.out, 'branches.md'))
