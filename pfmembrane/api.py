@@ -359,7 +359,8 @@ def tangent(result, parameter='reduced_volume', options=None, prefix=None):
     `solve` (the factorization reads `stage2_` options under the prefix)."""
     branch = _Branch(result, parameter, options, prefix)
     try:
-        dx, dnu = branch.solver.tangent(branch.x, getattr(branch.scene, parameter), branch.at)
+        (dx, dnu), _ = branch.solver.tangent(branch.x, getattr(branch.scene, parameter),
+                                             branch.at)
         return Tangent(parameter, branch.grid.discrete.layout.nodal(dx, 0.0), dnu)
     finally:
         branch.close()
@@ -381,7 +382,8 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     of the Hessian of the Lagrangian on the constraints' tangent space: the
     factorization's inertia minus the constraints), `dp_ds` and `fold` (1
     where dp/ds changed sign since the previous point) and `index_change` (1
-    where index_0 changed without a fold: a bifurcation passed).
+    where index_0 changed without a fold: a bifurcation passed); `result`'s
+    own attrs get its `index_0`, from the factorization of the first tangent.
     """
     from pfmembrane.parallel.solver import SolveError
     branch = _Branch(result, parameter, options, prefix)
@@ -389,9 +391,11 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     p = getattr(branch.scene, parameter)
     ds_max = ds_max or 4 * abs(ds)
     try:
-        bx, bnu = solver.tangent(x, p, branch.at)
+        (bx, bnu), negative = solver.tangent(x, p, branch.at)
+        start = None if negative is None else negative - solver.ncon
+        result.attrs['index_0'] = -1 if start is None else start
         t = _unit(bx, bnu, 1.0 if ds > 0 else -1.0)
-        step, s, previous = abs(ds), 0.0, (t[2], None)
+        step, s, previous = abs(ds), 0.0, (t[2], start)
         for _ in range(steps):
             x_old, nu_old = x.copy(), solver.nu.copy()
             try:

@@ -347,8 +347,10 @@ class Solver:
         return x, np.asarray(self.mpi.bcast(nu, root=P.comm.getSize() - 1))
 
     def tangent(self, x, p, at):
-        """(dx, dnu) = dX/dp of the converged state (x, nu) along its branch:
-        J dX/dp = -F_p, J the stage-2 Jacobian there (one factorization)."""
+        """((dx, dnu), negative pivots): dX/dp of the converged state (x, nu)
+        along its branch, J dX/dp = -F_p with J the stage-2 Jacobian there (one
+        factorization), and that factorization's negative pivots (None
+        without inertia)."""
         K = self.P.bordered_matrix()
         Fp = self._parameter_derivative(x, p, at, K.createVecLeft())
         self.evaluate(x)
@@ -359,7 +361,7 @@ class Solver:
         b = K.createVecLeft()
         ksp.solve(Fp, b)
         self.factorizations += 1
-        return self._split(b)
+        return self._split(b), self._negative_pivots(ksp)
 
     def arclength(self, x, p, t, ds, at, max_it=25):
         """The pseudo-arclength corrector (Keller's bordering): Newton on

@@ -192,6 +192,7 @@ def trace(family, c0, args, comm, say):
                         f"({'after ' + str(args.steps) + ' points' if len(stretch) == args.steps else 'the corrector failed'})")
         points += [p for p, _ in stretch]
         shapes += [s for _, s in stretch]
+    points[0]['index'] = int(start.attrs.get('index_0', -1))  # set by the first continuation
     return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min, points=points,
                 ends=ends, shapes=shapes, time=time.perf_counter() - t0)
 
