@@ -17,6 +17,7 @@ test module cannot import this one by name.
     mpiexec     mpiexec(*args, n=2): this interpreter on n ranks
     pfm         pfm(*args, n=2): the application on n ranks, as the drivers launch it
     mpirun      mpirun(args): a 2-rank `Run` of the application to act on as it runs
+    on_groups   on_groups(module, *args): a driver on one rank, then on two groups of one
 """
 import contextlib
 import os
@@ -221,6 +222,28 @@ def mpi_env(monkeypatch):
 def in_root(mpi_env, monkeypatch):
     """mpi_env, in the repository: the drivers name options files relative to it."""
     monkeypatch.chdir(ROOT)
+
+
+@pytest.fixture
+def on_groups(tmp_path, root):
+    """on_groups(module, *args): the driver `python -m module args` run on one rank into
+    tmp_path/one, then on two ranks as two groups of one (`--groups 2`) into tmp_path/two,
+    as a test launching its own mpiexec (skipped under one); returns the two directories
+    and the second run's output. Each run must exit with 0."""
+    from pfmembrane.studies.launch import under_mpiexec
+    if under_mpiexec():
+        pytest.skip('launches its own mpiexec')
+
+    def run(module, *args):
+        for n, out in ((1, 'one'), (2, 'two')):
+            done = subprocess.run([sys.executable, '-m', module, *args, '--np', str(n),
+                                   '--groups', str(n), '--out', str(tmp_path / out)],
+                                  cwd=root, env=child_env(), capture_output=True, text=True,
+                                  timeout=600)
+            assert done.returncode == 0, done.stderr[-2000:]
+        assert '[group 1]' in done.stdout
+        return tmp_path / 'one', tmp_path / 'two', done.stdout
+    return run
 
 
 @pytest.fixture(scope='session', name='python')

@@ -115,26 +115,18 @@ def _same(one, two, rtol=1e-8):
 
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_two_groups_of_one_rank_give_the_one_rank_atlas(tmp_path, child_env, root):
+def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, root):
     """Two branches (prolate and oblate at c0 1), up to 5 points each, on two groups of one
     rank and on one rank: the same points; the figures and tables are written, and a
     second run reuses the branch files."""
-    from pfmembrane.studies.launch import under_mpiexec
-    if under_mpiexec():
-        pytest.skip('launches its own mpiexec')
-    cmd = [sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL]
-    for np_, groups, out in ((1, 1, 'one'), (2, 2, 'two')):
-        done = subprocess.run(cmd + ['--np', str(np_), '--groups', str(groups), '--out',
-                                     str(tmp_path / out)], cwd=root, env=child_env,
-                              capture_output=True, text=True, timeout=600)
-        assert done.returncode == 0, done.stderr[-2000:]
-    assert '[group 1]' in done.stdout
-    one, two = _numbers(tmp_path / 'one'), _numbers(tmp_path / 'two')
+    one_dir, two_dir, _ = on_groups('pfmembrane.studies.atlas', *SMALL)
+    one, two = _numbers(one_dir), _numbers(two_dir)
     assert len(one) == 2 and all(len(b) >= 4 for b in one)
     _same(one, two)
     for name in ('branches.md', 'diagram.md', 'energy.png', 'diagram.png'):
-        assert (tmp_path / 'two' / name).stat().st_size > 0
-    again = subprocess.run(cmd + ['--np', '1', '--out', str(tmp_path / 'one')], cwd=root,
-                           env=child_env, capture_output=True, text=True, timeout=600)
+        assert (two_dir / name).stat().st_size > 0
+    again = subprocess.run([sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL, '--np',
+                            '1', '--out', str(one_dir)], cwd=root, env=child_env,
+                           capture_output=True, text=True, timeout=600)
     assert again.returncode == 0 and again.stdout.count('(reused)') == 2
-    _same(_numbers(tmp_path / 'one'), one, rtol=0.0)
+    _same(_numbers(one_dir), one, rtol=0.0)

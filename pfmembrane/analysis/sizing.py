@@ -70,4 +70,9 @@ def auto_box(branch, v, eps, radius, c0=0.0, k=1.0):
     side rounded up to a multiple of AUTO_STEP. Not collective; deterministic,
     so every rank finds the same box."""
     need, _ = required_box(branch, [v], eps, radius, c0, k)
-    return tuple(round(math.ceil(side / AUTO_STEP - 1e-9) * AUTO_STEP, 10) for side in need)
+    return rounded_up(need, AUTO_STEP)
+
+
+def rounded_up(box, step):
+    """Each side of `box` rounded up to a multiple of `step` (an exact multiple kept)."""
+    return tuple(round(math.ceil(side / step - 1e-9) * step, 10) for side in box)

@@ -63,7 +63,7 @@ OTHER_TOPOLOGY = 3  # a continuation ends after this many points of another topo
 def box_of(family, c0, eps):
     """One box for a branch: its family's sharp shapes at BOX_SAMPLES volumes of its range
     (those the sharp solver finds) with MARGIN eps, rounded up to BOX_STEP."""
-    from pfmembrane.analysis.sizing import required_box
+    from pfmembrane.analysis.sizing import required_box, rounded_up
     branch, half, first = FAMILIES[family]
     top = V_MAX if first >= V_MAX else min(V_MAX, first + 0.1)
     need = np.zeros(2)
@@ -77,7 +77,7 @@ def box_of(family, c0, eps):
                 continue
     if not need.any():
         raise RuntimeError(f"no sharp {branch} shape at c0 = {c0:g} sizes a box")
-    return tuple(round(math.ceil(s / BOX_STEP - 1e-9) * BOX_STEP, 10) for s in need)
+    return rounded_up(need, BOX_STEP)
 
 
 def point(res, wall):
@@ -463,8 +463,7 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.atlas',
                                  description=__doc__.splitlines()[0])
-    ap.add_argument('--np', type=int, default=2, help='MPI ranks')
-    ap.add_argument('--groups', type=int, default=1, help='rank groups, one branch each')
+    launch.group_arguments(ap, 'branch')
     ap.add_argument('--eps', type=float, default=0.02)
     ap.add_argument('--nodes', type=int, default=40000, help='nodes in the paper box (scaled)')
     ap.add_argument('--families', nargs='+', default=list(FAMILIES), choices=list(FAMILIES))
@@ -478,14 +477,10 @@ def main(argv=None):
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
-    ap.add_argument('options', nargs='*', metavar='-- OPTION')
-    args = ap.parse_args(argv)
+    args = launch.parsed(ap, argv)
     if args.plot:
         plot(args.plot)
         return 0
-    args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
-    if args.groups < 1 or args.np % args.groups:
-        ap.error(f"--groups {args.groups} does not divide --np {args.np}")
     todo = [(f, c0) for c0 in args.c0 for f in args.families]
     t0 = time.perf_counter()
     branches = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.atlas', todo,

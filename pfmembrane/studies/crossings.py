@@ -79,9 +79,9 @@ def crossing(vs, upper, lower):
 def box_of(branch, vs, eps):
     """One box for a series: every sharp shape and start of it with MARGIN eps,
     rounded up to BOX_STEP."""
-    from pfmembrane.analysis.sizing import required_box
+    from pfmembrane.analysis.sizing import required_box, rounded_up
     need = required_box(branch, vs, eps, RADIUS, margin=MARGIN)[0]
-    return tuple(round(math.ceil(side / BOX_STEP - 1e-9) * BOX_STEP, 10) for side in need)
+    return rounded_up(need, BOX_STEP)
 
 
 def follow(branch, vs, args, say):

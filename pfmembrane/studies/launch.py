@@ -42,6 +42,24 @@ def ensure_ranks(nprocs, module, argv):
         sys.exit(run(command(nprocs, *argv, module=module)).returncode)
 
 
+def group_arguments(ap, piece):
+    """--np and --groups of a driver whose `piece`s run on rank groups (`on_groups`),
+    and the solver options after `--`."""
+    ap.add_argument('--np', type=int, default=2, help='MPI ranks')
+    ap.add_argument('--groups', type=int, default=1, help=f'rank groups, one {piece} each')
+    ap.add_argument('options', nargs='*', metavar='-- OPTION')
+
+
+def parsed(ap, argv):
+    """`ap`'s arguments (`group_arguments` among them), with `solver`: the options after
+    `--` as a dict of names without the dash; refuses groups that do not divide --np."""
+    args = ap.parse_args(argv)
+    args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
+    if args.groups < 1 or args.np % args.groups:
+        ap.error(f"--groups {args.groups} does not divide --np {args.np}")
+    return args
+
+
 def on_groups(nprocs, groups, module, pieces, work):
     """`work(piece, comm, say)` for every piece, on `groups` groups of consecutive ranks
     of `nprocs` (under mpiexec, started if need be: `ensure_ranks`), group g taking the

@@ -159,24 +159,19 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.stability',
                                  description=__doc__.splitlines()[0])
-    ap.add_argument('--np', type=int, default=2, help='MPI ranks')
+    launch.group_arguments(ap, 'series')
     ap.add_argument('--eps', type=float, default=0.04)
     ap.add_argument('--nodes', type=int, default=6124, help='nodes in the paper box (scaled)')
     ap.add_argument('--modes', type=int, default=6, help='highest m')
     ap.add_argument('--out', default=os.path.join('runs', 'modes'))
-    ap.add_argument('--groups', type=int, default=1, help='rank groups, one series each')
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
     ap.add_argument('--count', type=int, help='the first COUNT points of each series')
     ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
                     help='Rb,Zb of every series (default: the paper box, grown where needed)')
     ap.add_argument('--values', type=float, nargs='+',
                     help="the followed parameter's values, in place of each series' own")
-    ap.add_argument('options', nargs='*', metavar='-- OPTION')
-    args = ap.parse_args(argv)
+    args = launch.parsed(ap, argv)
     args.series = [s for s in args.series if SERIES[s][0] in BRANCHES]
-    args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
-    if args.groups < 1 or args.np % args.groups:
-        ap.error(f"--groups {args.groups} does not divide --np {args.np}")
     results = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.stability',
                                args.series, lambda name, comm, say: follow(name, args, comm, say))
     if results is not None:

@@ -1,8 +1,6 @@
 """The stability study (pfmembrane.studies.stability) on rank groups: two series on two
 groups of one rank give the tables of one rank following both in turn."""
 import re
-import subprocess
-import sys
 
 import pytest
 
@@ -21,16 +19,7 @@ def _rows(path):
     return [row[:7] + row[8:] for row in rows]
 
 
-def test_two_groups_of_one_rank_give_the_one_rank_tables(tmp_path, child_env, root):
-    from pfmembrane.studies.launch import under_mpiexec
-    if under_mpiexec():
-        pytest.skip('launches its own mpiexec')
-    cmd = [sys.executable, '-m', 'pfmembrane.studies.stability', *SMALL]
-    for np_, groups, out in ((1, 1, 'one'), (2, 2, 'two')):
-        done = subprocess.run(cmd + ['--np', str(np_), '--groups', str(groups), '--out',
-                                     str(tmp_path / out)], cwd=root, env=child_env,
-                              capture_output=True, text=True, timeout=600)
-        assert done.returncode == 0, done.stderr[-2000:]
-    assert '[group 1]' in done.stdout
-    one, two = _rows(tmp_path / 'one' / 'branches.md'), _rows(tmp_path / 'two' / 'branches.md')
+def test_two_groups_of_one_rank_give_the_one_rank_tables(on_groups):
+    one, two, _ = on_groups('pfmembrane.studies.stability', *SMALL)
+    one, two = _rows(one / 'branches.md'), _rows(two / 'branches.md')
     assert len(one) == 4 and one == two
