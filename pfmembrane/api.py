@@ -248,11 +248,13 @@ def read(path, comm=None, expect_box=None):
     return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)
 
 
-def adapt(result, f, comm=None, **grid_params):
+def adapt(result, f, comm=None, along=(), **grid_params):
     """A grid of as many nodes as `result`'s, relocated by CVT for the density
     1 + f |grad phi_h| (paper Section 4.2), with its basis parameters unless
     given. A solve on it started from `result` uses phi_h transferred to the
-    new nodes. Collective."""
+    new nodes. `along`: results on `result`'s nodes (the points of a branch)
+    whose interfaces the grid follows too, by the largest |grad phi_h| of
+    them all. Collective."""
     PETSc = petsc()
     comm = _comm(comm if comm is not None else
                  (result.grid.comm if result.grid is not None else None))
@@ -262,12 +264,16 @@ def adapt(result, f, comm=None, **grid_params):
     try:
         beta = locality(result.nodes, float(a['gamma']), int(a.get('spacing_smoothing', 0)),
                         scene.plane)
+        if any(not np.array_equal(r.nodes, result.nodes) for r in along):
+            raise ValueError("adapt along results on other nodes")
         xy, phi, info = adaptivity.relocate(comm.tompi4py(), result.nodes, result.phi,
                                             scene.box, beta, float(a.get('cutoff', 1e-6)), f,
-                                            scene.plane)
+                                            scene.plane,
+                                            np.array([r.phi for r in along]) if along else None)
     finally:
         stage.pop()
-    PETSc.Sys.Print(f"adapt: CVT f={f:g} of {result.path or 'the result'}: {info['iterations']} "
+    of = (result.path or 'the result') + (f" and {len(along)} more" if along else '')
+    PETSc.Sys.Print(f"adapt: CVT f={f:g} of {of}: {info['iterations']} "
                     f"Lloyd steps (movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g}"
                     f" -> {info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s", comm=comm)

@@ -269,3 +269,14 @@ def test_spacing_peaks_of_refined_cvt(band_run):
     # Measured: 0.0145 against 0.0144 in the band and 0.0417 overall.
     assert h_min < 0.5 * np.median(h)
     assert h_min == pytest.approx(np.median(h[in_band]), rel=0.1)
+
+
+def test_first_peak_is_scipys_leftmost_prominent_peak():
+    from scipy.ndimage import gaussian_filter1d
+    from scipy.signal import find_peaks
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        y = np.r_[0.0, gaussian_filter1d(rng.poisson(5.0, 128).astype(float), rng.uniform(0.5, 4),
+                                         mode='constant'), 0.0]
+        p = rng.uniform(0.005, 0.3) * y.max()
+        assert nodesets.first_peak(y, p) == find_peaks(y, prominence=p)[0][0]

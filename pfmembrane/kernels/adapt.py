@@ -20,7 +20,8 @@ RASTER = 0.5  # raster spacing / smallest nodal spacing of the old grid
 
 def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
     """|grad phi_h| on a regular raster of the box (of its half z >= `plane`
-    for a half-box solve), and the raster's axes.
+    for a half-box solve), and the raster's axes; for `phi` of shape (K, N),
+    K fields on the same nodes (a branch), the largest of their |grad phi_h|.
 
     Collective (`comm` is an mpi4py communicator): each rank evaluates a
     share of the raster rows. `beta` is the locality phi_h was solved with.
@@ -31,14 +32,18 @@ def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
     R, Z = np.meshgrid(r, z[mine], indexing='xy')
     points = np.column_stack([R.ravel(), Z.ravel()])
     basis = folded_basis(points, nodes, beta, cutoff, derivatives=1, plane=plane)
-    grad = np.column_stack([maxent.interpolate(basis._replace(p=basis.dp[:, i]), phi)
-                            for i in range(2)])
-    rows = comm.allgather(np.hypot(grad[:, 0], grad[:, 1]).reshape(len(mine), len(r)))
+    largest = np.zeros(len(points))
+    for field in np.atleast_2d(phi):
+        grad = [maxent.interpolate(basis._replace(p=basis.dp[:, i]), field) for i in range(2)]
+        largest = np.maximum(largest, np.hypot(*grad))
+    rows = comm.allgather(largest.reshape(len(mine), len(r)))
     return r, z, np.vstack(rows)
 
 
-def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None):
-    """CVT nodes for rho = 1 + f |grad phi_h| and phi_h transferred to them.
+def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
+    """CVT nodes for rho = 1 + f |grad phi_h| and phi_h transferred to them;
+    with `along` (K, N), fields on the same nodes such as the other points of
+    a branch, rho = 1 + f max |grad phi_h| over `phi` and them.
 
     Collective (`comm` is an mpi4py communicator). `phi` holds the values at
     every node, Dirichlet nodes included, and `beta` the locality of its
@@ -48,7 +53,8 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None):
     nodes hold -1 exactly.
     """
     t0 = time.perf_counter()
-    r, z, grad = gradient_raster(comm, nodes, phi, box, beta, cutoff, plane)
+    fields = phi if along is None else np.vstack([phi, along])
+    r, z, grad = gradient_raster(comm, nodes, fields, box, beta, cutoff, plane)
     t_raster = time.perf_counter() - t0
     # The tessellation works in [0, Rb] x [0, Zb - z0].
     shift = np.array([0.0, z[0]])

@@ -141,6 +141,14 @@ def follow(family, c0, args, comm, say):
     return branch
 
 
+def coarse_branch(out, family, c0):
+    """The branch OUT/branches holds, whose points an adapted grid follows."""
+    path = branch_path(out, family, c0)
+    if not os.path.exists(path):
+        raise RuntimeError(f"no coarse branch {path} to adapt to (run the atlas into {out})")
+    return load(path)
+
+
 def trace(family, c0, args, comm, say):
     """`follow`, computed."""
     import pfmembrane as pf
@@ -149,10 +157,15 @@ def trace(family, c0, args, comm, say):
     described = dict(family=family, c0=c0, half=half, box=(math.nan, math.nan), nodes=0,
                      eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
-        box = args.box or box_of(family, c0, args.eps)
+        coarse = args.adapt and coarse_branch(args.coarse, family, c0)
+        box = coarse['box'] if args.adapt else args.box or box_of(family, c0, args.eps)
         scene = pf.Scene(reduced_volume=first, c0=c0 / (2 * RADIUS), radius=RADIUS,
                          box=box, branch=branch, symmetric=half)
-        grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
+        if args.adapt:
+            results = [pf.Result(*shape) for shape in coarse['shapes']]
+            grid = pf.adapt(results[0], args.adapt, comm=comm, along=results[1:])
+        else:
+            grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
         say(f"-- {family} c0 {c0:g}: box {box[0]:g}x{box[1]:g}{' (half)' if half else ''}, "
             f"{grid!r}")
         t1 = time.perf_counter()
@@ -286,13 +299,16 @@ def transitions(best, vs):
 def write(branches, args, out, wall):
     """OUT/branches.md, OUT/diagram.md, OUT/atlas.json, the figures. Not collective."""
     curvatures = sorted({b['c0'] for b in branches})
-    head = (f"eps {args.eps:g}, uniform grids of the spacing of {args.nodes} nodes in the "
-            f"paper box, R = {RADIUS:g}, k = 1; {args.np} MPI ranks in {args.groups} "
-            f"group(s) on {os.cpu_count()} cores.")
+    grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
+             f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
+             f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
+    head = (f"eps {args.eps:g}, {grids}, R = {RADIUS:g}, k = 1; {args.np} MPI ranks in "
+            f"{args.groups} group(s) on {os.cpu_count()} cores.")
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
                f"--eps {args.eps:g} --nodes {args.nodes} --ds {args.ds:g} --steps {args.steps}"
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
+               + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
                + f" --out {args.out}`")
     lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
              "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
@@ -474,10 +490,16 @@ def main(argv=None):
     ap.add_argument('--out', default=os.path.join('runs', 'atlas'))
     ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
                     help="Rb,Zb of every branch (default: its family's sharp shapes')")
+    ap.add_argument('--adapt', type=float, metavar='F',
+                    help='follow each branch on the nodes of its branch in --coarse, relocated '
+                         'by CVT for 1 + F max |grad phi_h| over its points')
+    ap.add_argument('--coarse', metavar='DIR', help='the atlas whose branches --adapt follows')
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
     args = launch.parsed(ap, argv)
+    if bool(args.adapt) != bool(args.coarse):
+        ap.error('--adapt and --coarse go together')
     if args.plot:
         plot(args.plot)
         return 0

@@ -13,8 +13,8 @@ from pfmembrane.kernels.basis import folded_basis, locality
 BOX, EPS = (1.0, 1.4), 0.05
 
 
-def _phi(xy):
-    d = np.hypot(xy[:, 0], xy[:, 1] - 0.7) - 0.45
+def _phi(xy, radius=0.45):
+    d = np.hypot(xy[:, 0], xy[:, 1] - 0.7) - radius
     phi = -np.tanh(d / (np.sqrt(2) * EPS))
     phi[nodes.dirichlet_mask(xy, BOX)] = -1.0
     return phi
@@ -54,11 +54,25 @@ def test_phi_is_the_old_interpolant_at_the_new_nodes(relocated):
                        atol=1e-10)
 
 
-def test_same_grid_on_every_rank_count(relocated):
+def test_same_grid_on_every_rank_count(relocated, distributed):
     xy, phi, new, _, _ = relocated
     comm = MPI.COMM_WORLD
-    if comm.Get_size() == 1:
-        pytest.skip('compares against a one-rank relocation: run under mpiexec -n 2')
     one = adapt.relocate(MPI.COMM_SELF, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)[0]
     assert np.array_equal(one, new)
     assert all(np.array_equal(other, new) for other in comm.allgather(new))
+
+
+def test_nodes_along_a_branch_gather_at_every_interface(relocated):
+    # A second circle, 0.15 larger: the density is the larger |grad phi_h| of the two.
+    xy, phi, alone, alone_phi, _ = relocated
+    bigger = _phi(xy, 0.6)
+    same = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
+                          along=phi[None])
+    assert np.array_equal(same[0], alone) and np.array_equal(same[1], alone_phi)
+    new, new_phi, _ = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6,
+                                     100.0, along=bigger[None])
+    assert np.array_equal(new_phi, adapt.transfer(xy, phi, locality(xy, 0.8, 3), 1e-6, new, BOX))
+    h = nodes.nodal_spacing(new)
+    far = np.hypot(new[:, 0], new[:, 1] - 0.7)
+    for radius in (0.45, 0.6):
+        assert np.median(h[np.abs(far - radius) < EPS / 2]) < 0.7 * np.median(h[far > 0.9])

@@ -13,7 +13,7 @@ HALF = pf.Scene(reduced_volume=0.8, branch='oblate', symmetric=True)
 
 
 @pytest.mark.parametrize('scene', [SCENE, HALF], ids=['full box', 'half box'])
-def test_ranks_agree_with_one_rank(scene):
+def test_ranks_agree_with_one_rank(scene, distributed):
     world = pf.Grid.uniform(scene, nodes=1500)
     alone = pf.Grid.uniform(scene, nodes=1500, comm=PETSc.COMM_SELF)
     many = pf.solve(scene, world, eps=0.075, checks=False)

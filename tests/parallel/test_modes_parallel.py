@@ -1,7 +1,7 @@
 """The mode analysis (pfmembrane.parallel.modes) on COMM_WORLD agrees with one rank:
 the same index, eigenvalues and modes for m = 0 ... 3.
 
-Collective: one rank under pytest, two under `mpiexec -n 2`.
+Under `mpiexec -n 2` only (skipped on one rank).
 """
 import numpy as np
 import pytest
@@ -26,7 +26,7 @@ def _spectra(grid, result):
     return spectra, modes
 
 
-def test_index_eigenvalues_and_modes_agree_with_one_rank():
+def test_index_eigenvalues_and_modes_agree_with_one_rank(distributed):
     world = pf.Grid.uniform(SCENE, nodes=1500)
     result = pf.solve(SCENE, world, eps=EPS, checks=False)
     assert result.converged
