@@ -121,12 +121,13 @@ class Grid:
 
     Collective on `comm`. `gamma` is the max-ent locality (beta_a = gamma /
     h_a^2), `cutoff` the support cut-off, `quad_degree` the Gauss rule on the
-    Delaunay triangles, `spacing_smoothing` the passes over h_a behind beta_a.
+    Delaunay triangles, `spacing_smoothing` the passes over h_a behind beta_a,
+    `partition` the split of the nodes among the ranks (`parallel.partition`).
     """
 
     def __init__(self, scene, nodes, gamma=Params.gamma, cutoff=Params.cutoff,
                  quad_degree=Params.quad_degree, spacing_smoothing=Params.spacing_smoothing,
-                 comm=None):
+                 partition=Params.partition, comm=None):
         from pfmembrane.parallel.discretization import Grid as Discretization
         PETSc = petsc()
         if scene.box == 'auto':
@@ -134,7 +135,7 @@ class Grid:
         self.comm = _comm(comm)
         self.box, self.symmetric, self.plane = scene.box, scene.symmetric, scene.plane
         self.params = dict(gamma=gamma, cutoff=cutoff, quad_degree=quad_degree,
-                           spacing_smoothing=spacing_smoothing)
+                           spacing_smoothing=spacing_smoothing, partition=partition)
         self.adapt_info, self.adapt_f, self._transferred = None, 0.0, None
         t0 = time.perf_counter()
         stage = PETSc.Log.Stage('pfBasis')
@@ -142,7 +143,7 @@ class Grid:
         try:
             self.discrete = Discretization(self.comm, np.asarray(nodes, dtype=float), scene.box,
                                            gamma, cutoff, quad_degree, spacing_smoothing,
-                                           scene.plane)
+                                           scene.plane, partition)
             self.discrete.gram  # stage 2 always needs the Hessian
         finally:
             stage.pop()

@@ -49,7 +49,7 @@ def grid_of(p, scene, start, comm, cache):
     those nodes relocated by CVT; the basis parameters are the options'. A
     grid already built for the same nodes and parameters is reused."""
     params = dict(gamma=p.gamma, cutoff=p.cutoff, quad_degree=p.quad_degree,
-                  spacing_smoothing=p.spacing_smoothing)
+                  spacing_smoothing=p.spacing_smoothing, partition=p.partition)
     if start is not None and p.adapt:
         return api.adapt(start, p.adapt, comm=comm, **params)
     if start is not None:

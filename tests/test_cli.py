@@ -35,6 +35,7 @@ BAD_INPUT = {
     'branch': ([*BASE, '-pf_branch', 'cylinder'], "unknown shape 'cylinder'"),
     'box': ([*BASE, '-pf_box', '0.5,0.6'], 'cannot hold the oblate vesicle'),
     'nodes': ([*BASE, '-pf_nodes', '50'], 'too few'),
+    'partition': ([*BASE, '-pf_partition', 'metis'], '-pf_partition must be one of bisection'),
     'unresolved': ([*BASE, '-pf_eps', '0.03'], 'below what this grid resolves'),
     'typo': ([*BASE, '-pf_epss', '0.03'], "unknown option '-pf_epss' (did you mean -pf_eps?)"),
     'typo-in-file': (['-options_file', '{tmp}/typo.opts'],
@@ -139,6 +140,16 @@ def test_one_two_and_three_ranks_agree(runs):
     assert abs(a2['area'] / (4 * np.pi * R ** 2) - 1) < 1e-8
     assert abs(a2['volume'] / (0.8 * 4 / 3 * np.pi * R ** 3) - 1) < 1e-8
     assert a2['nu_area'] > 0 and a2['nu_volume'] < 0
+
+
+@pytest.mark.mpi
+def test_a_run_on_two_ranks_repeats_bit_for_bit(runs, pfm):
+    d, res = runs
+    path = str(d / 'again.h5')
+    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_output', path)
+    assert out.returncode == 0, out.stderr
+    (a, phi), (b, psi) = _energy(path), _energy(res[2])
+    assert np.array_equal(phi, psi) and a['energy'] == b['energy']
 
 
 @pytest.mark.mpi

@@ -111,3 +111,14 @@ def test_rescaled_phi_narrows_the_tanh_profile_about_its_zero():
     assert np.allclose(out[1:-1], np.tanh(d[1:-1] / (np.sqrt(2.0) * 0.01)), atol=1e-12)
     assert out[0] == -1.0 and out[-1] == 1.0004
     assert np.array_equal(rescaled_phi(phi, 0.01, 0.01), phi)
+
+
+@pytest.mark.parametrize('parts', [2, 3, 4, 7])
+def test_bisection_cuts_across_the_longer_side_into_parts_of_equal_size(parts):
+    from pfmembrane.parallel.partition import bisection
+    xy = nodes.uniform((0.75, 2.0), 1500)
+    part = bisection(xy, parts)
+    counts = np.bincount(part, minlength=parts)
+    assert len(counts) == parts and np.ptp(counts) <= 1
+    if parts == 2:  # one straight cut across z
+        assert xy[part == 0, 1].max() <= xy[part == 1, 1].min()

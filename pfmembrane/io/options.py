@@ -88,6 +88,7 @@ class Params(Settings, Targets):
     cutoff: float = 1e-6
     quad_degree: int = 4
     spacing_smoothing: int = 3
+    partition: str = 'bisection'
     modes: int = -1
 
 
@@ -113,6 +114,8 @@ HELP = {
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
     'spacing_smoothing': 'smoothing passes over the nodal spacing h_a behind beta_a (0: raw h_a)',
+    'partition': 'nodes among the ranks: bisection (coordinate; a run repeats bit for bit) | '
+                 'a MatPartitioning type (ptscotch: graph, changes from run to run)',
     'modes': 'stability of the converged shape against psi(r,z) cos(m theta), m = 0..M: the '
              'index per m (-1: none; eigensolver options -modes_eps_...)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
@@ -123,6 +126,9 @@ HELP = {
     'monitor': 'print one row per iteration (energy, residuals, max |phi|)',
     'force': 'run even when eps is below what the grid resolves (result flagged)',
 }
+
+# bisection (`parallel.partition`) and the graph partitioners PETSc may be built with
+PARTITIONS = ('bisection', 'ptscotch', 'parmetis', 'chaco', 'party')
 
 KINDS = {float: 'a number', int: 'an integer', bool: 'true or false',
          tuple: "two numbers Rb,Zb or 'auto'"}
@@ -319,6 +325,8 @@ def validate(p):
         raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     _require(-1 <= p.modes <= 50, 'modes', 'in -1..50', p.modes)
+    _require(p.partition in PARTITIONS, 'partition', f"one of {', '.join(PARTITIONS)}",
+             p.partition)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
     if p.restart or p.box == 'auto':

@@ -48,7 +48,7 @@ class Grid:
     """
 
     def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0,
-                 plane=None):
+                 plane=None, partition='bisection'):
         self.comm, self.nodes, self.box = comm, nodes, tuple(box)
         self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
         self.plane = plane
@@ -56,7 +56,7 @@ class Grid:
         self.beta = gamma / smoothed ** 2  # `locality`, from the triangulation h needs too
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
-        self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles)
+        self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles, partition)
         points, weights = quadrature.rule(nodes, self.layout.my_triangles, degree)
         if plane is not None:
             weights = 2.0 * weights

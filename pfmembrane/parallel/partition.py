@@ -1,8 +1,8 @@
 """Ownership of the free nodes among the ranks, carried by a PETSc DMShell.
 
 Every rank holds the node coordinates (per-node data is small). Each rank owns
-a contiguous block of the free unknowns, renumbered after a graph partition of
-the Delaunay adjacency, owns the background triangles nearest to its nodes, and
+a contiguous block of the free unknowns, renumbered after a coordinate
+bisection (or a graph partition of the Delaunay adjacency), owns the background triangles nearest to its nodes, and
 sees as ghosts the off-rank free nodes its quadrature points touch.
 """
 import numpy as np
@@ -19,16 +19,43 @@ def _graph(n, triangles):
     return indptr, key % n
 
 
-def partition_free_nodes(comm, free, triangles):
+def bisection(points, parts):
+    """Part (0 ... parts - 1) of each point by recursive coordinate bisection:
+    each set is cut across its longer extent at the point count that splits
+    its parts in two (ties broken by the other coordinate, then the index),
+    so the parts differ in size by at most one and the result is a function
+    of the points alone. Not collective."""
+    part = np.zeros(len(points), dtype=np.int64)
+
+    def cut(idx, first, n):
+        if n == 1:
+            part[idx] = first
+            return
+        axis = int(np.argmax(np.ptp(points[idx], axis=0)))
+        idx = idx[np.lexsort((idx, points[idx, 1 - axis], points[idx, axis]))]
+        k = len(idx) * (n // 2) // n
+        cut(idx[:k], first, n // 2)
+        cut(idx[k:], first + n // 2, n - n // 2)
+
+    cut(np.arange(len(points)), 0, parts)
+    return part
+
+
+def partition_free_nodes(comm, nodes, free, triangles, method='bisection'):
     """Rank owning each free node (in node order).
 
-    Collective. MatPartitioning (-pf_mat_partitioning_type, default ptscotch)
-    cuts the Delaunay graph of the free nodes so that ghost layers stay thin.
+    Collective. `method` 'bisection': the coordinate `bisection` of the free
+    nodes, the same partition in every run, so that a run on P ranks repeats
+    bit for bit; any other, a PETSc MatPartitioning type (ptscotch) of the
+    Delaunay graph of the free nodes, whose partitions change from run to run
+    (PT-Scotch seeds itself from the clock).
     """
     size, rank = comm.getSize(), comm.getRank()
     nfree = int(free.sum())
     if size == 1:
         return np.zeros(nfree, dtype=np.int64)
+    if method == 'bisection':
+        return bisection(nodes[free], size)
     index = np.full(len(free), -1, dtype=np.int64)
     index[free] = np.arange(nfree)
     indptr, cols = _graph(nfree, index[triangles[free[triangles].all(axis=1)]])
@@ -40,9 +67,7 @@ def partition_free_nodes(comm, free, triangles):
              np.ones(indptr[hi] - indptr[lo])))
     part = PETSc.MatPartitioning().create(comm)
     part.setAdjacency(adj)
-    part.setType('ptscotch')
-    part.setOptionsPrefix('pf_')
-    part.setFromOptions()
+    part.setType(method)
     new_is = PETSc.IS()
     part.apply(new_is)
     new_rank = new_is.getIndices().astype(np.int64)
@@ -60,10 +85,10 @@ class Layout:
     unknowns first, then the ghosts in increasing global number.
     """
 
-    def __init__(self, comm, nodes, free, triangles):
+    def __init__(self, comm, nodes, free, triangles, partition='bisection'):
         self.comm = comm
         rank = comm.getRank()
-        owner = partition_free_nodes(comm, free, triangles)
+        owner = partition_free_nodes(comm, nodes, free, triangles, partition)
         free_nodes = np.flatnonzero(free)
         self.order = free_nodes[np.argsort(owner, kind='stable')]
         self.number = np.full(len(free), -1, dtype=np.int64)

@@ -37,3 +37,12 @@ def test_a_grid_serves_eps_and_volume_steps():
     assert step.attrs['stage1_iterations'] == -1  # straight to the bordered Newton
     assert step.attrs['volume'] == pytest.approx(deflated.volume, rel=1e-10)
     assert step.energy > first.energy  # deflating the discocyte costs bending energy
+
+
+def test_a_graph_partition_gives_the_bisections_result(distributed):
+    cut = pf.Grid.uniform(HALF, nodes=1500)
+    graph = pf.Grid.uniform(HALF, nodes=1500, partition='ptscotch')
+    assert not np.array_equal(cut.discrete.layout.order, graph.discrete.layout.order)
+    a, b = (pf.solve(HALF, g, eps=0.075, checks=False) for g in (cut, graph))
+    assert a.energy == pytest.approx(b.energy, rel=1e-10)
+    assert np.allclose(a.phi, b.phi, atol=1e-8)
