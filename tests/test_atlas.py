@@ -130,3 +130,16 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
                            capture_output=True, text=True, timeout=600)
     assert again.returncode == 0 and again.stdout.count('(reused)') == 2
     _same(_numbers(one_dir), one, rtol=0.0)
+    # the same branches at a smaller eps, each on its coarse branch's nodes adapted by CVT
+    adapted = subprocess.run([sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL[2:],
+                              '--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir),
+                              '--steps', '2', '--np', '1', '--out', str(one_dir / 'adapted')],
+                             cwd=root, env=child_env, capture_output=True, text=True,
+                             timeout=600)
+    assert adapted.returncode == 0, adapted.stderr[-2000:]
+    assert adapted.stdout.count('adapt: CVT f=10 of the result and ') == 2
+    with open(one_dir / 'atlas.json') as f, open(one_dir / 'adapted' / 'atlas.json') as g:
+        coarse, fine = json.load(f)['branches'], json.load(g)['branches']
+    for c, b in zip(coarse, fine):
+        assert b['nodes'] == c['nodes'] and b['box'] == c['box'] and b['eps_min'] < 0.05
+        assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])
