@@ -114,7 +114,7 @@ HELP = {
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
     'spacing_smoothing': 'smoothing passes over the nodal spacing h_a behind beta_a (0: raw h_a)',
-    'partition': 'nodes among the ranks: bisection (coordinate; a run repeats bit for bit) | '
+    'partition': 'nodes among the ranks: bisection (coordinate; the same in every run) | '
                  'a MatPartitioning type (ptscotch: graph, changes from run to run)',
     'modes': 'stability of the converged shape against psi(r,z) cos(m theta), m = 0..M: the '
              'index per m (-1: none; eigensolver options -modes_eps_...)',

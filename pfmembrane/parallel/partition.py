@@ -45,8 +45,9 @@ def partition_free_nodes(comm, nodes, free, triangles, method='bisection'):
     """Rank owning each free node (in node order).
 
     Collective. `method` 'bisection': the coordinate `bisection` of the free
-    nodes, the same partition in every run, so that a run on P ranks repeats
-    bit for bit; any other, a PETSc MatPartitioning type (ptscotch) of the
+    nodes, the same partition in every run, so that the assembly sums in the
+    same order every time (parallel MUMPS can still differ in the last bits,
+    runs/api/README.md); any other, a PETSc MatPartitioning type (ptscotch) of the
     Delaunay graph of the free nodes, whose partitions change from run to run
     (PT-Scotch seeds itself from the clock).
     """
