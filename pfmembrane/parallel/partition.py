@@ -2,8 +2,9 @@
 
 Every rank holds the node coordinates (per-node data is small). Each rank owns
 a contiguous block of the free unknowns, renumbered after a coordinate
-bisection (or a graph partition of the Delaunay adjacency), owns the background triangles nearest to its nodes, and
-sees as ghosts the off-rank free nodes its quadrature points touch.
+bisection (or a graph partition of the Delaunay adjacency), owns the
+background triangles nearest to its nodes, and sees as ghosts the off-rank
+free nodes its quadrature points touch.
 """
 import numpy as np
 from petsc4py import PETSc
