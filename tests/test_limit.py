@@ -282,3 +282,20 @@ def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, mon
 
     assert "sharp_energy" in checked and "sharp_energy" not in failed
     assert failed["boundary_phi"] == checked["boundary_phi"]
+
+
+def test_lobe_of_two_touching_spheres_and_of_a_necked_pair():
+    from pfmembrane.studies.limits import lobe
+    a, zc, t = 0.28, 1.0, np.linspace(0.0, np.pi, 400)
+    # split: the upper sphere's meridian, axis to axis, its mirror image below
+    upper = np.column_stack([a * np.sin(t), zc + 0.01 + a * (1 - np.cos(t))])
+    lower = upper * [1, -1] + [0, 2 * zc]
+    half, width, neck = lobe([upper, lower], zc)
+    assert half == pytest.approx(a, rel=1e-4) and width == pytest.approx(a, rel=1e-4)
+    assert neck == 0.0
+    # one body: a meridian through a neck of radius 0.05 at the mid-plane
+    z = np.linspace(zc - 2 * a, zc + 2 * a, 801)
+    r = np.sqrt(np.clip(a ** 2 - (np.abs(z - zc) - a) ** 2, 0.0, None)) + 0.05 * np.cos(
+        np.pi * (z - zc) / (4 * a)) ** 8
+    half, width, neck = lobe([np.column_stack([r, z])], zc)
+    assert half == pytest.approx(a, rel=1e-3) and neck == pytest.approx(0.05, rel=0.02)

@@ -3,49 +3,93 @@
     python -m pfmembrane.studies.limits [--np 2] [--out runs/limits] [--only clifford]
 
 the Clifford torus (options/limits/clifford.opts: E -> pi^2 k, both multipliers -> 0,
-radii in ratio 1 : sqrt 2) and symmetric budding (options/limits/budding.opts: two spheres
-of radius R / sqrt 2 with H = C0, E -> 0). Each row is the run `python -m pfmembrane
--options_file SCENE -pf_nodes N -pf_eps EPS` would make, from the scene's own start, all in
-one process on NP ranks (started under mpiexec if need be), the rows of one grid on that grid
-built once. Existing checkpoints are reused. The level set of phi_h is measured by
-`analysis.limit`: its topology, the torus's own energy (`loop_energy`) and radii, the
-spheres' radii (half their heights, and their widths).
+radii in ratio 1 : sqrt 2) and symmetric budding (two spheres of radius R / sqrt 2 with
+H = C0 at v = 1 / sqrt 2, C0 = sqrt 2 / R: E -> 0). A Clifford row is the run `python -m
+pfmembrane -options_file SCENE -pf_nodes N -pf_eps EPS` would make, from the scene's own
+start, the rows of one grid on that grid built once. Budding is reached by continuation in
+C0 on the half box (`budded`): the two touching spheres started from directly do not
+converge (runs/limits/notes.md). All in one process on NP ranks (started under mpiexec if
+need be); existing checkpoints are reused. The level set of phi_h is measured by
+`analysis.limit`: its topology, the torus's own energy (`loop_energy`) and radii, and the
+upper lobe's half height, largest r and neck radius (`lobe`).
 """
 import argparse
+import dataclasses
 import math
 import os
 import sys
+import time
 
 import numpy as np
 
 from pfmembrane.studies import launch
 
 # (eps, nodes) of each limit, the grid resolving the smallest eps on its box.
+# Budding: nodes are the spacing of that many in the paper box.
 ROWS = {'clifford': [(0.04, 6124), (0.03, 6124), (0.02, 6124), (0.015, 10000)],
-        'budding': [(0.04, 3000), (0.03, 5000)]}
-SCENES = {name: os.path.join('options', 'limits', f'{name}.opts') for name in ROWS}
+        'budding': [(0.04, 6124), (0.03, 12000), (0.02, 22000), (0.015, 40000)]}
+CLIFFORD = os.path.join('options', 'limits', 'clifford.opts')
+RADIUS = 0.4
+BUD_V, BUD_C0 = 1 / math.sqrt(2), math.sqrt(2) / RADIUS
+# The budding path: the prolate's sharp shape at C0 = BUD_FROM (one body, a wide neck), in
+# a half box that holds it and the two spheres with 5 eps to spare at eps 0.04.
+BUD_FROM, BUD_BOX, BUD_DS = 1.25, (0.5, 2.0), 0.25
 
 
-def run(name, eps, nodes, out, cache):
-    """The checkpoint of one row, solved unless it exists."""
+def clifford(eps, nodes, out, cache):
+    """The checkpoint of one Clifford row, solved unless it exists."""
     from pfmembrane import run as runs
-    path = os.path.join(out, f"{name}_n{nodes}_eps{eps:g}.h5")
-    return runs.solved(SCENES[name], ['-pf_nodes', str(nodes), '-pf_eps', str(eps)], path,
+    path = os.path.join(out, f"clifford_n{nodes}_eps{eps:g}.h5")
+    return runs.solved(CLIFFORD, ['-pf_nodes', str(nodes), '-pf_eps', str(eps)], path,
                        cache).checkpoint()
 
 
+def budded(eps, nodes, out):
+    """The checkpoint of one budding row: the prolate at v = 1 / sqrt 2 and C0 = BUD_FROM
+    from its sharp shape, `pf.continuation` in C0 until it passes sqrt 2 / R, then the
+    solve at sqrt 2 / R from that point; read back if it exists. Collective; the
+    checkpoint's `continuation_points` counts the points on the way."""
+    import pfmembrane as pf
+    from pfmembrane.scenes import paper_spacing
+    path = os.path.join(out, f"budding_n{nodes}_eps{eps:g}.h5")
+    if os.path.exists(path):
+        return pf.read(path).checkpoint()
+    t0 = time.perf_counter()
+    scene = pf.Scene(reduced_volume=BUD_V, c0=BUD_FROM, radius=RADIUS, box=BUD_BOX,
+                     branch='prolate', symmetric=True)
+    grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, BUD_BOX))
+    last = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'})
+    points = 0
+    for last in pf.continuation(last, 'c0', BUD_DS, 100, ds_max=4 * BUD_DS):
+        points += 1
+        if last.attrs['c0'] > BUD_C0:
+            break
+    res = pf.solve(dataclasses.replace(scene, c0=BUD_C0), grid, eps, start=last,
+                   options={'pf_stage1': 'none'})
+    res.attrs.update(continuation_points=points, wall_time=time.perf_counter() - t0)
+    res.save(path)
+    return res.checkpoint()
+
+
+def lobe(curve, zc):
+    """Half the height, the largest r and the neck radius (0 if split) of the part of
+    phi_h = 0 above the mirror plane z = zc."""
+    up = np.vstack([piece[piece[:, 1] >= zc] for piece in curve])
+    near = np.abs(up[:, 1] - zc) < 1e-2 * np.ptp(up[:, 1])
+    return 0.5 * float(np.ptp(up[:, 1])), float(up[:, 0].max()), \
+        float(up[near, 0].min()) if near.any() else 0.0
+
+
 def measure(ckpt):
-    """Topology of phi_h = 0, and per piece: a torus's energy and (tube, centre-line)
-    radii; a sphere's half height and largest r."""
+    """Topology of phi_h = 0, each torus's energy and (tube, centre-line) radii, and the
+    `lobe` above the box's mid-plane."""
     from pfmembrane.analysis import limit
     field = limit.PhaseField(ckpt)
     curve = limit.level_set(ckpt, field=field)
     shape = limit.topology(curve, ckpt.box)
     tori = [limit.loop_energy(ckpt, piece, field) for piece in curve
             if piece[:, 0].min() > 1e-3 * max(ckpt.box)]
-    spheres = sorted((0.5 * float(np.ptp(piece[:, 1])), float(piece[:, 0].max()))
-                     for piece in curve if piece[:, 0].min() <= 1e-3 * max(ckpt.box))
-    return shape['label'], tori, spheres
+    return shape['label'], tori, lobe(curve, 0.5 * ckpt.box[1])
 
 
 def main(argv=None):
@@ -64,10 +108,11 @@ def main(argv=None):
     for name in [args.only] if args.only else ROWS:
         rows = []
         for eps, nodes in ROWS[name]:
-            ck = run(name, eps, nodes, args.out, cache)
+            ck = (clifford(eps, nodes, args.out, cache) if name == 'clifford' else
+                  budded(eps, nodes, args.out).unfolded())
             a = ck.attrs
-            label, tori, spheres = measure(ck) if root else ('', [], [])
-            rows.append((eps, nodes, a, label, tori, spheres))
+            label, tori, lobed = measure(ck) if root else ('', [], (math.nan,) * 3)
+            rows.append((eps, nodes, a, label, tori, lobed))
         if name == 'clifford':
             lines += ['## The Clifford torus: E -> pi^2 = 9.869604, nu -> 0, b / a -> sqrt 2', '',
                       '| nodes | eps | E | E / pi^2 - 1 | nu_A | nu_V | phi_h = 0 | its (1+2) | converged '
@@ -83,21 +128,22 @@ def main(argv=None):
                     f"{100 * (e / math.pi ** 2 - 1):+.3f}% | {tube:.4f} | {centre:.4f} | "
                     f"{centre / tube:.4f} |")
         else:
-            target = 0.4 / math.sqrt(2)
+            target = RADIUS / math.sqrt(2)
             lines += [f'## Symmetric budding: two spheres of radius R / sqrt 2 = {target:.5f}, E -> 0',
-                      '', '| nodes | eps | E | nu_A | nu_V | phi_h = 0 | its (1+2) | converged | wall s '
-                      '| half heights | vs R/sqrt2 | largest r | vs R/sqrt2 |',
-                      '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
-            for eps, nodes, a, label, _, spheres in rows:
-                halves = ', '.join(f"{h:.5f}" for h, _ in spheres)
-                widths = ', '.join(f"{w:.5f}" for _, w in spheres)
+                      '', 'v = 1 / sqrt 2, C0 = sqrt 2 / R, half box '
+                      f'{BUD_BOX[0]:g} x {BUD_BOX[1]:g}, reached by continuation in C0 from '
+                      f'{BUD_FROM:g}; nodes of the paper-box spacing given in `ROWS`.', '',
+                      '| nodes | eps | E | nu_A | nu_V | phi_h = 0 | points in C0 | converged '
+                      '| wall s | lobe half height | vs R/sqrt2 | lobe largest r | vs R/sqrt2 '
+                      '| neck r | neck r / eps |',
+                      '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            for eps, nodes, a, label, _, (half, width, neck) in rows:
                 lines.append(
                     f"| {int(a['n_nodes'])} | {eps:g} | {a['energy']:.5f} | {a['nu_area']:.4f} | "
-                    f"{a['nu_volume']:.3f} | {label} | {int(a['stage1_iterations'])}+"
-                    f"{int(a['stage2_iterations'])} | {int(a['converged'])} | {a['wall_time']:.1f} | {halves} | "
-                    + ', '.join(f"{100 * (h / target - 1):+.2f}%" for h, _ in spheres)
-                    + f" | {widths} | "
-                    + ', '.join(f"{100 * (w / target - 1):+.2f}%" for _, w in spheres) + " |")
+                    f"{a['nu_volume']:.3f} | {label} | {int(a['continuation_points'])} | "
+                    f"{int(a['converged'])} | {a['wall_time']:.1f} | {half:.5f} | "
+                    f"{100 * (half / target - 1):+.2f}% | {width:.5f} | "
+                    f"{100 * (width / target - 1):+.2f}% | {neck:.4f} | {neck / eps:.2f} |")
         lines.append('')
     if root:
         table = os.path.join(args.out, f"limits{'_' + args.only if args.only else ''}.md")
