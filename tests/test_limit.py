@@ -299,3 +299,19 @@ def test_lobe_of_two_touching_spheres_and_of_a_necked_pair():
         np.pi * (z - zc) / (4 * a)) ** 8
     half, width, neck = lobe([np.column_stack([r, z])], zc)
     assert half == pytest.approx(a, rel=1e-3) and neck == pytest.approx(0.05, rel=0.02)
+
+
+@pytest.mark.slow
+def test_budding_is_reached_by_continuation_in_c0_and_reused(tmp_path):
+    import sys
+    import pfmembrane as pf
+    from pfmembrane.studies import limits
+    pf.api.petsc(sys.argv[:1])
+    ck = limits.budded(0.07, 2500, str(tmp_path))
+    a = ck.attrs
+    assert a['converged'] == 1 and a['continuation_points'] >= 3
+    assert a['c0'] == limits.BUD_C0 and a['reduced_volume'] == pytest.approx(limits.BUD_V)
+    label, _, (half, width, neck) = limits.measure(ck.unfolded())
+    assert label == '1 sphere' and 0.0 < neck < width  # two lobes and a neck, at this eps
+    assert width == pytest.approx(0.4 / np.sqrt(2), rel=0.3)
+    assert limits.budded(0.07, 2500, str(tmp_path)).attrs['energy'] == a['energy']  # read back
