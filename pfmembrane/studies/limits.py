@@ -64,6 +64,9 @@ def budded(eps, nodes, out):
         points += 1
         if last.attrs['c0'] > BUD_C0:
             break
+    else:
+        raise RuntimeError(f"budding at eps {eps:g}: the continuation in C0 stopped at "
+                           f"{last.attrs['c0']:g}, short of {BUD_C0:g}")
     res = pf.solve(dataclasses.replace(scene, c0=BUD_C0), grid, eps, start=last,
                    options={'pf_stage1': 'none'})
     res.attrs.update(continuation_points=points, wall_time=time.perf_counter() - t0)
