@@ -143,16 +143,6 @@ def test_one_two_and_three_ranks_agree(runs):
 
 
 @pytest.mark.mpi
-def test_a_run_on_two_ranks_repeats_bit_for_bit(runs, pfm):
-    d, res = runs
-    path = str(d / 'again.h5')
-    out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_output', path)
-    assert out.returncode == 0, out.stderr
-    (a, phi), (b, psi) = _energy(path), _energy(res[2])
-    assert np.array_equal(phi, psi) and a['energy'] == b['energy']
-
-
-@pytest.mark.mpi
 def test_restart_reaches_the_same_answer(runs, pfm):
     d, res = runs
     path = str(d / 'restarted.h5')

@@ -46,3 +46,11 @@ def test_a_graph_partition_gives_the_bisections_result(distributed):
     a, b = (pf.solve(HALF, g, eps=0.075, checks=False) for g in (cut, graph))
     assert a.energy == pytest.approx(b.energy, rel=1e-10)
     assert np.allclose(a.phi, b.phi, atol=1e-8)
+
+
+def test_the_partition_is_the_bisection_of_the_free_nodes(distributed):
+    from pfmembrane.parallel.partition import bisection
+    d = pf.Grid.uniform(HALF, nodes=1500).discrete
+    free = np.flatnonzero(~d.dirichlet)
+    part = bisection(d.nodes[free], PETSc.COMM_WORLD.getSize())
+    assert np.array_equal(d.layout.order, free[np.argsort(part, kind='stable')])
