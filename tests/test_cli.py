@@ -178,7 +178,7 @@ def test_a_restart_at_a_smaller_eps_keeps_its_multipliers(tmp_path, pfm):
     # least-squares start took two, through nu_A 34 (answer 11.6).
     grid = ['-options_file', 'options/discocyte.opts', '-pf_nodes', '2500']
     start, path = str(tmp_path / 'start.h5'), str(tmp_path / 'eps0.06.h5')
-    assert pfm(*grid, '-pf_eps', '0.075', '-pf_output', start).returncode == 0
+    assert pfm(*grid, '-pf_eps', '0.075', '-pf_start', 'sharp', '-pf_output', start).returncode == 0
     out = pfm(*grid, '-pf_eps', '0.06', '-pf_restart', start, '-pf_monitor',
               '-pf_output', path)
     assert out.returncode == 0, out.stderr
