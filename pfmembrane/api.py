@@ -160,11 +160,7 @@ class Grid:
     @classmethod
     def of(cls, result, comm=None, **kwargs):
         """The grid of a result's nodes, with its basis parameters unless given."""
-        a = result.attrs
-        params = dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
-                      quad_degree=int(a.get('quad_degree', 4)),
-                      spacing_smoothing=int(a.get('spacing_smoothing', 0)))
-        return cls(result.scene, result.nodes, **{**params, **kwargs}, comm=comm)
+        return cls(result.scene, result.nodes, **{**result.basis, **kwargs}, comm=comm)
 
     @property
     def nodes(self):
@@ -222,6 +218,19 @@ class Result:
     def scene(self):
         return Scene.of(self.attrs)
 
+    @property
+    def basis(self):
+        """The basis parameters it was solved with (`Grid`'s keywords)."""
+        a = self.attrs
+        return dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
+                    quad_degree=int(a.get('quad_degree', 4)),
+                    spacing_smoothing=int(a.get('spacing_smoothing', 0)))
+
+    def locality(self, plane=None):
+        """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box)."""
+        b = self.basis
+        return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane)
+
     def checkpoint(self):
         return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
 
@@ -259,17 +268,15 @@ def adapt(result, f, comm=None, along=(), **grid_params):
     PETSc = petsc()
     comm = _comm(comm if comm is not None else
                  (result.grid.comm if result.grid is not None else None))
-    scene, a = result.scene, result.attrs
+    scene, basis = result.scene, result.basis
     stage = PETSc.Log.Stage('pfAdapt')
     stage.push()
     try:
-        beta = locality(result.nodes, float(a['gamma']), int(a.get('spacing_smoothing', 0)),
-                        scene.plane)
         if any(not np.array_equal(r.nodes, result.nodes) for r in along):
             raise ValueError("adapt along results on other nodes")
         xy, phi, info = adaptivity.relocate(comm.tompi4py(), result.nodes, result.phi,
-                                            scene.box, beta, float(a.get('cutoff', 1e-6)), f,
-                                            scene.plane,
+                                            scene.box, result.locality(scene.plane),
+                                            basis['cutoff'], f, scene.plane,
                                             np.array([r.phi for r in along]) if along else None)
     finally:
         stage.pop()
@@ -278,10 +285,7 @@ def adapt(result, f, comm=None, along=(), **grid_params):
                     f"Lloyd steps (movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g}"
                     f" -> {info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s", comm=comm)
-    params = dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
-                  quad_degree=int(a.get('quad_degree', 4)),
-                  spacing_smoothing=int(a.get('spacing_smoothing', 0)))
-    grid = Grid(scene, xy, **{**params, **grid_params}, comm=comm)
+    grid = Grid(scene, xy, **{**basis, **grid_params}, comm=comm)
     grid.adapt_info, grid.adapt_f, grid._transferred = info, float(f), (result, phi)
     return grid
 
@@ -588,11 +592,8 @@ def _start_phi(scene, grid, eps, start, shape='auto'):
     elif len(start.nodes) == grid.n_nodes and np.array_equal(start.nodes, grid.nodes):
         phi = start.phi
     else:
-        a = start.attrs
-        beta = locality(start.nodes, float(a['gamma']), int(a.get('spacing_smoothing', 0)),
-                        grid.plane)
-        phi = adaptivity.transfer(start.nodes, start.phi, beta, float(a.get('cutoff', 1e-6)),
-                                  grid.nodes, grid.box, grid.plane)
+        phi = adaptivity.transfer(start.nodes, start.phi, start.locality(grid.plane),
+                                  start.basis['cutoff'], grid.nodes, grid.box, grid.plane)
     return initial.rescaled_phi(phi, start.eps, eps), start.nu, start.converged
 
 

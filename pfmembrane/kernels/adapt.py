@@ -32,10 +32,11 @@ def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
     R, Z = np.meshgrid(r, z[mine], indexing='xy')
     points = np.column_stack([R.ravel(), Z.ravel()])
     basis = folded_basis(points, nodes, beta, cutoff, derivatives=1, plane=plane)
+    d_r, d_z = (basis._replace(p=basis.dp[:, i]) for i in range(2))
     largest = np.zeros(len(points))
     for field in np.atleast_2d(phi):
-        grad = [maxent.interpolate(basis._replace(p=basis.dp[:, i]), field) for i in range(2)]
-        largest = np.maximum(largest, np.hypot(*grad))
+        largest = np.maximum(largest, np.hypot(maxent.interpolate(d_r, field),
+                                               maxent.interpolate(d_z, field)))
     rows = comm.allgather(largest.reshape(len(mine), len(r)))
     return r, z, np.vstack(rows)
 

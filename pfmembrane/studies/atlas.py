@@ -157,13 +157,13 @@ def trace(family, c0, args, comm, say):
     described = dict(family=family, c0=c0, half=half, box=(math.nan, math.nan), nodes=0,
                      eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
-        coarse = args.adapt and coarse_branch(args.coarse, family, c0)
-        box = coarse['box'] if args.adapt else args.box or box_of(family, c0, args.eps)
+        coarse = coarse_branch(args.coarse, family, c0) if args.adapt else None
+        box = coarse['box'] if coarse else args.box or box_of(family, c0, args.eps)
         scene = pf.Scene(reduced_volume=first, c0=c0 / (2 * RADIUS), radius=RADIUS,
                          box=box, branch=branch, symmetric=half)
-        if args.adapt:
-            results = [pf.Result(*shape) for shape in coarse['shapes']]
-            grid = pf.adapt(results[0], args.adapt, comm=comm, along=results[1:])
+        if coarse:
+            along = [pf.Result(*shape) for shape in coarse['shapes']]
+            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:])
         else:
             grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
         say(f"-- {family} c0 {c0:g}: box {box[0]:g}x{box[1]:g}{' (half)' if half else ''}, "
@@ -480,16 +480,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.atlas',
                                  description=__doc__.splitlines()[0])
     launch.group_arguments(ap, 'branch')
-    ap.add_argument('--eps', type=float, default=0.02)
-    ap.add_argument('--nodes', type=int, default=40000, help='nodes in the paper box (scaled)')
+    launch.grid_arguments(ap, 0.02, 40000, "branch (default: its family's sharp shapes')")
     ap.add_argument('--families', nargs='+', default=list(FAMILIES), choices=list(FAMILIES))
     ap.add_argument('--c0', type=float, nargs='+', default=CURVATURES,
                     help='reduced spontaneous curvatures 2 C0 R')
     ap.add_argument('--ds', type=float, default=0.05, help='first arclength step')
     ap.add_argument('--steps', type=int, default=120, help='most points per continuation')
     ap.add_argument('--out', default=os.path.join('runs', 'atlas'))
-    ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
-                    help="Rb,Zb of every branch (default: its family's sharp shapes')")
     ap.add_argument('--adapt', type=float, metavar='F',
                     help='follow each branch on the nodes of its branch in --coarse, relocated '
                          'by CVT for 1 + F max |grad phi_h| over its points')

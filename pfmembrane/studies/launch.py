@@ -50,6 +50,15 @@ def group_arguments(ap, piece):
     ap.add_argument('options', nargs='*', metavar='-- OPTION')
 
 
+def grid_arguments(ap, eps, nodes, box):
+    """--eps, --nodes (the spacing of that many nodes in the paper box) and --box
+    Rb,Zb (`box`: what it replaces) of a driver's grids."""
+    ap.add_argument('--eps', type=float, default=eps)
+    ap.add_argument('--nodes', type=int, default=nodes, help='nodes in the paper box (scaled)')
+    ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
+                    help=f'Rb,Zb of every {box}')
+
+
 def parsed(ap, argv):
     """`ap`'s arguments (`group_arguments` among them), with `solver`: the options after
     `--` as a dict of names without the dash; refuses groups that do not divide --np."""

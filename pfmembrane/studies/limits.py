@@ -48,7 +48,8 @@ def budded(eps, nodes, out):
     """The checkpoint of one budding row: the prolate at v = 1 / sqrt 2 and C0 = BUD_FROM
     from its sharp shape, `pf.continuation` in C0 until it passes sqrt 2 / R, then the
     solve at sqrt 2 / R from that point; read back if it exists. Collective; the
-    checkpoint's `continuation_points` counts the points on the way."""
+    checkpoint's `continuation_points` counts the points on the way and its
+    `wall_time` is the whole path's."""
     import pfmembrane as pf
     from pfmembrane.scenes import paper_spacing
     path = os.path.join(out, f"budding_n{nodes}_eps{eps:g}.h5")

@@ -160,14 +160,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.stability',
                                  description=__doc__.splitlines()[0])
     launch.group_arguments(ap, 'series')
-    ap.add_argument('--eps', type=float, default=0.04)
-    ap.add_argument('--nodes', type=int, default=6124, help='nodes in the paper box (scaled)')
+    launch.grid_arguments(ap, 0.04, 6124, 'series (default: the paper box, grown where needed)')
     ap.add_argument('--modes', type=int, default=6, help='highest m')
     ap.add_argument('--out', default=os.path.join('runs', 'modes'))
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
     ap.add_argument('--count', type=int, help='the first COUNT points of each series')
-    ap.add_argument('--box', type=lambda t: tuple(map(float, t.split(','))),
-                    help='Rb,Zb of every series (default: the paper box, grown where needed)')
     ap.add_argument('--values', type=float, nargs='+',
                     help="the followed parameter's values, in place of each series' own")
     args = launch.parsed(ap, argv)
