@@ -93,6 +93,40 @@ SMALL = ['--eps', '0.06', '--nodes', '3000', '--families', 'prolate', 'oblate', 
          '--ds', '0.04', '--steps', '4']
 
 
+def _silhouette(c0, v, label):
+    return dict(c0=c0, v=v, label=label, pieces=[[[0.0, 0.1, 0.0], [-0.1, 0.0, 0.1]]])
+
+
+def test_a_merged_diagram_takes_a_family_from_the_last_atlas_that_has_it(tmp_path):
+    """The stomatocyte of a second atlas (at a smaller eps, a sphere of lower energy below
+    v 0.65) replaces the first's (a torus): the merged diagram's least state below the
+    crossing is it, its branch carries its eps, and only its silhouette is kept."""
+    first, second, out = (tmp_path / name for name in ('first', 'second', 'merged'))
+    prolate = _linear('prolate', 0.0, 7.0, 10.0)
+    torus = _linear('stomatocyte', 0.0, 20.0, 0.0)
+    for p in torus['points']:
+        p['topology'] = '1 torus'
+    sphere = _linear('stomatocyte', 0.0, 8.5, 5.0)      # below the prolate for v < 0.65
+    for d, branches, pictures, eps in (
+            (first, [prolate, torus], [_silhouette(0.0, 0.8, 'prolate'),
+                                       _silhouette(0.0, 0.6, 'stomatocyte (1 torus)')], 0.02),
+            (second, [sphere], [_silhouette(0.0, 0.6, 'stomatocyte')], 0.01)):
+        d.mkdir()
+        atlas.diagram([{k: v for k, v in b.items() if k != 'shapes'} for b in branches],
+                      'head', 'command', 'footer', pictures, str(d), dict(eps=eps))
+    atlas.merge([str(first), str(second)], str(out))
+    with open(out / 'atlas.json') as f:
+        merged = json.load(f)
+    assert sorted((b['family'], b['eps']) for b in merged['branches']) == \
+        [('prolate', 0.02), ('stomatocyte', 0.01)]
+    best = atlas.least(merged['branches'], 0.0, atlas.grid_v())
+    assert best[0][0] == 'stomatocyte' and best[-1][0] == 'prolate'
+    assert sorted(s['label'] for s in merged['silhouettes']) == ['prolate', 'stomatocyte']
+    text = (out / 'diagram.md').read_text()
+    assert 'eps 0.02 (prolate), 0.01 (stomatocyte)' in text and 'stomatocyte 0.5500-0.6' in text
+    assert (out / 'diagram.png').stat().st_size > 0
+
+
 def _numbers(out):
     """Every point's values but its seconds and iterations, from OUT/atlas.json."""
     with open(out / 'atlas.json') as f:
@@ -143,4 +177,5 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
         coarse, fine = json.load(f)['branches'], json.load(g)['branches']
     for c, b in zip(coarse, fine):
         assert b['nodes'] == c['nodes'] and b['box'] == c['box'] and b['eps_min'] < 0.05
+        assert (c['eps'], b['eps']) == (0.06, 0.05)
         assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])

@@ -5,6 +5,7 @@ c = (A, V) on a half box;
 the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
 tension, nu_V the pressure difference.
 """
+import ctypes
 import time
 
 import numpy as np
@@ -203,8 +204,11 @@ class Solver:
         return K.getDiagonal().norm(PETSc.NormType.NORM_1) / K.getSize()[0]
 
     def _negative_pivots(self, ksp):
+        pc = ksp.getPC()
         try:
-            return ksp.getPC().getFactorMatrix().getInertia()[0]
+            if pc.getType() == PETSc.PC.Type.REDUNDANT:
+                return redundant_negative_pivots(pc)
+            return pc.getFactorMatrix().getInertia()[0]
         except PETSc.Error:
             return None
 
@@ -291,6 +295,7 @@ class Solver:
         self._set_default('stage2_snes_linesearch_type', 'basic')
         self._configure_direct(snes.getKSP(), 'stage2_')
         snes.setFromOptions()
+        self._redundant_defaults(snes.getKSP(), 'stage2_')
         snes.setConvergenceHistory()
         X0 = X.copy()
         snes.solve(None, X)
@@ -446,6 +451,16 @@ class Solver:
         self._set_default(stage + 'mat_mumps_icntl_13', '1')  # inertia in parallel
         self._set_default(stage + 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
 
+    def _redundant_defaults(self, ksp, stage):
+        """The same LDL^T inside a PCREDUNDANT (`-stage1_pc_type redundant`): every rank
+        factors the whole matrix with sequential MUMPS, and its inertia still gives the
+        stage-1 shifts and the index."""
+        if ksp.getPC().getType() != PETSc.PC.Type.REDUNDANT:
+            return
+        for name, value in (('pc_type', 'cholesky'), ('pc_factor_mat_solver_type', 'mumps'),
+                            ('mat_mumps_icntl_7', '6'), ('mat_mumps_icntl_24', '1')):
+            self._set_default(stage + 'redundant_' + name, value)
+
     def _direct_ksp(self, stage):
         """One LDL^T (MUMPS Cholesky) solver under the `stage` prefix, kept for
         every later factorization of the same pattern (numeric only)."""
@@ -453,4 +468,22 @@ class Solver:
             ksp = self._ksps[stage] = PETSc.KSP().create(self.P.comm)
             self._configure_direct(ksp, stage)
             ksp.setFromOptions()
+            self._redundant_defaults(ksp, stage)
         return self._ksps[stage]
+
+
+def redundant_negative_pivots(pc):
+    """The negative pivots of the factorization inside a PCREDUNDANT, through the C API
+    that petsc4py does not wrap (SLEPc's spectrum slicing reads it the same way)."""
+    lib = ctypes.CDLL(PETSc.__file__)  # libpetsc comes with petsc4py's extension
+    inner, inner_pc, factor = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
+    nneg = np.zeros(1, dtype=PETSc.IntType)
+    for call, args in ((lib.PCRedundantGetKSP, (ctypes.c_void_p(pc.handle), ctypes.byref(inner))),
+                       (lib.KSPGetPC, (inner, ctypes.byref(inner_pc))),
+                       (lib.PCFactorGetMatrix, (inner_pc, ctypes.byref(factor))),
+                       (lib.MatGetInertia, (factor, nneg.ctypes.data_as(ctypes.c_void_p),
+                                            None, None))):
+        code = call(*args)
+        if code:
+            raise PETSc.Error(code)
+    return int(nneg[0])

@@ -4,6 +4,7 @@
         [--families prolate oblate stomatocyte] [--c0 X ...] [--ds 0.05] [--steps 120]
         [--box Rb,Zb] [--out runs/atlas] [--force] [-- SOLVER OPTIONS]
     python -m pfmembrane.studies.atlas --plot runs/atlas
+    python -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/stomatocyte --out DIR
 
 Each branch is a family (`FAMILIES`) at one reduced spontaneous curvature c0 = 2 C0 R: one
 grid of the spacing of NODES nodes in the paper box, in a box holding the family's sharp
@@ -29,6 +30,11 @@ later run reuses it (unless --force): a run that dies loses only the branch it w
 The branches are independent: `--groups G` splits the NP ranks into G groups of NP / G, each
 following every G-th branch on its own sub-communicator; the tables are the same whatever
 the grouping.
+
+`--merge` draws one diagram from several atlases: a family that the diagram's eps does not
+resolve (the stomatocyte at eps 0.02 keeps its bud off the axis) is followed at a smaller
+eps in an atlas of its own, and its branches replace that family's. Which state is least
+is decided on the level-set energies, which estimate the same sharp limit at every eps.
 """
 import argparse
 import json
@@ -154,8 +160,8 @@ def trace(family, c0, args, comm, say):
     import pfmembrane as pf
     branch, half, first = FAMILIES[family]
     t0 = time.perf_counter()
-    described = dict(family=family, c0=c0, half=half, box=(math.nan, math.nan), nodes=0,
-                     eps_min=math.nan, points=[], shapes=[])
+    described = dict(family=family, c0=c0, eps=args.eps, half=half, box=(math.nan, math.nan),
+                     nodes=0, eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
         coarse = coarse_branch(args.coarse, family, c0) if args.adapt else None
         box = coarse['box'] if coarse else args.box or box_of(family, c0, args.eps)
@@ -297,8 +303,7 @@ def transitions(best, vs):
 
 
 def write(branches, args, out, wall):
-    """OUT/branches.md, OUT/diagram.md, OUT/atlas.json, the figures. Not collective."""
-    curvatures = sorted({b['c0'] for b in branches})
+    """OUT/branches.md, and by `diagram` the phase diagram. Not collective."""
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
              f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
              f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
@@ -325,6 +330,21 @@ def write(branches, args, out, wall):
                   f"Ends: {'; '.join(b['ends']) or 'none'}.\n"] + table(b)
     with open(os.path.join(out, 'branches.md'), 'w') as f:
         f.write('\n'.join(lines) + '\n')
+    points = sum(len(b['points']) for b in branches)
+    computed = sum(b['time'] for b in branches)
+    footer = (f"{points} points on {len(branches)} branches: {computed:.0f} s of branch "
+              f"time on groups of {args.np // args.groups} rank(s), "
+              f"{computed / max(points, 1):.2f} s per point; the median continuation step "
+              f"{np.nanmedian([median_step(b) for b in branches]):.2f} s. This invocation: "
+              f"{wall:.0f} s wall on {args.np} ranks (branches it reused cost it nothing).")
+    diagram([{k: v for k, v in b.items() if k != 'shapes'} for b in branches], head, command,
+            footer, silhouettes(branches), out, dict(eps=args.eps, nodes=args.nodes, np=args.np))
+
+
+def diagram(branches, head, command, footer, pictures, out, about):
+    """OUT/diagram.md, OUT/atlas.json (`about` the run, the branches without their
+    shapes, the silhouettes `pictures`: everything the figures need) and the figures.
+    Not collective."""
     vs = grid_v()
     lines = ["# The phase diagram of the spontaneous-curvature model\n", head + "\n",
              f"Regenerate: {command}.\n",
@@ -334,9 +354,9 @@ def write(branches, args, out, wall):
              "stopped, and its folds (the index across each). SBL at c0 = 0: prolate above 0.652, oblate down to 0.592, "
              "stomatocyte below.\n",
              "| c0 | regions (v from high to low) | transitions v | ends |", "|---|---|---|---|"]
-    for c0 in curvatures:
+    for c0 in sorted({b['c0'] for b in branches}):
         best = least(branches, c0, vs)
-        regions, start = [], None
+        regions = []
         for i in range(len(vs) - 1, -1, -1):
             if i == len(vs) - 1 or best[i][0] != best[i + 1][0]:
                 regions.append([best[i][0] or 'none', vs[i], vs[i]])
@@ -347,21 +367,43 @@ def write(branches, args, out, wall):
         ends = '; '.join(f"{b['family']}: {', '.join(b['ends'] + folds(b))}" for b in branches
                          if b['c0'] == c0)
         lines.append(f"| {c0:g} | {text} | {trans} | {ends} |")
-    points = sum(len(b['points']) for b in branches)
-    computed = sum(b['time'] for b in branches)
-    lines += ["", f"{points} points on {len(branches)} branches: {computed:.0f} s of branch "
-              f"time on groups of {args.np // args.groups} rank(s), "
-              f"{computed / max(points, 1):.2f} s per point; the median continuation step "
-              f"{np.nanmedian([median_step(b) for b in branches]):.2f} s. This invocation: "
-              f"{wall:.0f} s wall on {args.np} ranks (branches it reused cost it nothing)."]
     with open(os.path.join(out, 'diagram.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+        f.write('\n'.join(lines + ["", footer]) + '\n')
     with open(os.path.join(out, 'atlas.json'), 'w') as f:
-        json.dump(dict(args=dict(eps=args.eps, nodes=args.nodes, np=args.np), wall=wall,
-                       branches=[{k: v for k, v in b.items() if k != 'shapes'}
-                                 for b in branches],
-                       silhouettes=silhouettes(branches)), f, indent=1)
+        json.dump(dict(args=about, branches=branches, silhouettes=pictures), f, indent=1)
     plot(out)
+
+
+def merge(sources, out):
+    """One phase diagram of the branches of several atlases (SOURCE/atlas.json each): a
+    family at a c0 that a later source followed too is the later one's (a family resolved
+    at a smaller eps, say), with that source's silhouettes. Not collective."""
+    kept, pictures = {}, {}
+    for source in sources:
+        with open(os.path.join(source, 'atlas.json')) as f:
+            data = json.load(f)
+        for b in data['branches']:
+            b.setdefault('eps', data['args']['eps'])  # atlases written before eps per branch
+            kept[b['family'], b['c0']] = b
+            pictures[b['family'], b['c0']] = [s for s in data['silhouettes'] if s['c0'] == b['c0']
+                                              and s['label'].split(' ')[0] == b['family']]
+    branches = list(kept.values())
+    os.makedirs(out, exist_ok=True)
+    shapes = []
+    for c0 in sorted({b['c0'] for b in branches}):
+        have = [s for (_, c), ss in pictures.items() if c == c0 for s in ss]
+        for name, mid in middles(branches, c0):
+            near = [s for s in have if s['label'] == name]
+            if near:
+                shapes.append(min(near, key=lambda s: abs(s['v'] - mid)))
+    eps = {b['family']: b['eps'] for b in branches}
+    head = (f"The branches of {', '.join(sources)} (their branches.md), eps "
+            + ', '.join(f"{e:g} ({' '.join(f for f in eps if eps[f] == e)})"
+                        for e in dict.fromkeys(eps.values())) + '.')
+    footer = (f"{sum(len(b['points']) for b in branches)} points on {len(branches)} branches; "
+              f"their times are in each source's diagram.md.")
+    diagram(branches, head, f"`python -m pfmembrane.studies.atlas --merge {' '.join(sources)} "
+            f"--out {out}`", footer, shapes, out, dict(eps=min(eps.values()), merged=sources))
 
 
 def folds(branch):
@@ -376,18 +418,24 @@ def median_step(branch):
     return float(np.median(steps)) if steps else math.nan
 
 
+def middles(branches, c0):
+    """(label, v) of each region of the least-energy state at c0 and the grid volume in
+    its middle."""
+    vs = grid_v()
+    best = least(branches, c0, vs)
+    for name in dict.fromkeys(n for n, _ in best if n):
+        where = [vs[i] for i, (n, _) in enumerate(best) if n == name]
+        yield name, where[len(where) // 2]
+
+
 def silhouettes(branches):
     """The level set of the least-energy state nearest the middle of each region of each
     c0, as (c0, v, label, [[r...], [z...]] per piece) about its centroid."""
     from pfmembrane.analysis import limit
     from pfmembrane.io.checkpoint import Checkpoint
-    vs, out = grid_v(), []
+    out = []
     for c0 in sorted({b['c0'] for b in branches}):
-        best = least(branches, c0, vs)
-        names = [n for n in dict.fromkeys(n for n, _ in best) if n]
-        for name in names:
-            where = [vs[i] for i, (n, _) in enumerate(best) if n == name]
-            mid = where[len(where) // 2]
+        for name, mid in middles(branches, c0):
             candidates = [(abs(p['v'] - mid), b, i) for b in branches if b['c0'] == c0
                           for i, p in enumerate(b['points'])
                           if label(b['family'], p['topology']) == name]
@@ -469,8 +517,11 @@ def plot(out):
         ax.annotate(s['label'], (s['v'], s['c0'] - 0.45 * step), ha='center', fontsize=7)
     ax.set_xlabel('reduced volume v')
     ax.set_ylabel('reduced spontaneous curvature c0 = 2 C0 R')
+    eps = {b['family']: b.get('eps', data['args']['eps']) for b in branches}
     ax.set_title('least level-set energy (phase fields, eps '
-                 f"{data['args']['eps']:g}); | transitions")
+                 + ', '.join(f"{e:g}" + ('' if len(set(eps.values())) == 1 else
+                                         f" {'/'.join(f for f in eps if eps[f] == e)}")
+                             for e in dict.fromkeys(eps.values())) + '); | transitions')
     fig.savefig(os.path.join(out, 'diagram.png'), dpi=130, bbox_inches='tight')
     plt.close(fig)
 
@@ -494,11 +545,18 @@ def main(argv=None):
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
+    ap.add_argument('--merge', metavar='SOURCE', nargs='+',
+                    help="one diagram in --out of these atlases' branches, a family at a c0 "
+                         "from the last source that has it")
     args = launch.parsed(ap, argv)
     if bool(args.adapt) != bool(args.coarse):
         ap.error('--adapt and --coarse go together')
     if args.plot:
         plot(args.plot)
+        return 0
+    if args.merge:
+        merge(args.merge, args.out)
+        print(os.path.join(args.out, 'diagram.md'))
         return 0
     todo = [(f, c0) for c0 in args.c0 for f in args.families]
     t0 = time.perf_counter()

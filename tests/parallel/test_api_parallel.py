@@ -54,3 +54,20 @@ def test_the_partition_is_the_bisection_of_the_free_nodes(distributed):
     free = np.flatnonzero(~d.dirichlet)
     part = bisection(d.nodes[free], PETSc.COMM_WORLD.getSize())
     assert np.array_equal(d.layout.order, free[np.argsort(part, kind='stable')])
+
+
+def test_a_redundant_factorization_gives_the_parallel_one_and_its_index(distributed):
+    """`-stageN_pc_type redundant`: sequential MUMPS LDL^T on every rank. The same
+    iterations and energy as parallel MUMPS, and the stability index (the inertia
+    inside the PCREDUNDANT) along a continuation."""
+    grid = pf.Grid.uniform(HALF, nodes=1500)
+    redundant = {'stage1_pc_type': 'redundant', 'stage2_pc_type': 'redundant'}
+    parallel = pf.solve(HALF, grid, eps=0.075, checks=False)
+    one = pf.solve(HALF, grid, eps=0.075, options=redundant, checks=False)
+    assert one.energy == pytest.approx(parallel.energy, rel=1e-12)
+    for key in ('stage1_iterations', 'stage2_iterations'):
+        assert one.attrs[key] == parallel.attrs[key]
+    step, = pf.continuation(one, 'reduced_volume', -0.02, 1, options=redundant)
+    again, = pf.continuation(parallel, 'reduced_volume', -0.02, 1)
+    assert one.attrs['index_0'] == step.attrs['index_0'] == again.attrs['index_0'] == 0
+    assert step.energy == pytest.approx(again.energy, rel=1e-10)
