@@ -378,7 +378,7 @@ def tangent(result, parameter='reduced_volume', options=None, prefix=None):
 
 
 def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix=None,
-                 checks=True):
+                 checks=True, switch=False):
     """Pseudo-arclength continuation of `result`'s branch in a scene parameter
     (`CONTINUATION`), in this process on the result's grid. Collective.
 
@@ -395,6 +395,12 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     where dp/ds changed sign since the previous point) and `index_change` (1
     where index_0 changed without a fold: a bifurcation passed); `result`'s
     own attrs get its `index_0`, from the factorization of the first tangent.
+
+    With `switch`, the branch left is the one crossing `result`'s at a
+    bifurcation near it: the first tangent is the critical mode there (the
+    eigenvector of that Hessian whose eigenvalue is nearest zero, `Solver.
+    critical_mode`, stored as `result`'s attr `critical_eigenvalue`) with no
+    parameter change, and ds > 0 and ds < 0 go to its two sides.
     """
     from pfmembrane.parallel.solver import SolveError
     branch = _Branch(result, parameter, options, prefix)
@@ -402,10 +408,17 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     p = getattr(branch.scene, parameter)
     ds_max = ds_max or 4 * abs(ds)
     try:
-        (bx, bnu), negative = solver.tangent(x, p, branch.at)
+        sign = 1.0 if ds > 0 else -1.0
+        if switch:
+            mx, mnu, value, negative = solver.critical_mode(x)
+            mx.scale(sign)
+            t = (mx, sign * mnu, 0.0)
+            result.attrs['critical_eigenvalue'] = value
+        else:
+            (bx, bnu), negative = solver.tangent(x, p, branch.at)
+            t = _unit(bx, bnu, sign)
         start = None if negative is None else negative - solver.ncon
         result.attrs['index_0'] = -1 if start is None else start
-        t = _unit(bx, bnu, 1.0 if ds > 0 else -1.0)
         step, s, previous = abs(ds), 0.0, (t[2], start)
         for _ in range(steps):
             x_old, nu_old = x.copy(), solver.nu.copy()
@@ -432,7 +445,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
             if t[0].dot(t_new[0]) / x.getSize() + t[2] * t_new[2] < 0:
                 t_new = _unit(bx, bnu, -1.0)
             index = None if negative is None else negative - solver.ncon
-            fold = int(np.sign(t_new[2]) != np.sign(previous[0]))
+            fold = int(previous[0] != 0 and np.sign(t_new[2]) != np.sign(previous[0]))
             changed = int(previous[1] is not None and index is not None
                           and index != previous[1] and not fold)
             t, previous = t_new, (t_new[2], index)

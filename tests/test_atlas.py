@@ -123,7 +123,8 @@ def test_a_merged_diagram_takes_a_family_from_the_last_atlas_that_has_it(tmp_pat
     assert best[0][0] == 'stomatocyte' and best[-1][0] == 'prolate'
     assert sorted(s['label'] for s in merged['silhouettes']) == ['prolate', 'stomatocyte']
     text = (out / 'diagram.md').read_text()
-    assert 'eps 0.02 (prolate), 0.01 (stomatocyte)' in text and 'stomatocyte 0.5500-0.6' in text
+    assert 'eps 0.02: prolate at c0 0; eps 0.01: stomatocyte at c0 0.' in text
+    assert 'stomatocyte 0.5500-0.6' in text
     assert (out / 'diagram.png').stat().st_size > 0
 
 

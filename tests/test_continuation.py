@@ -83,3 +83,43 @@ def test_continuation_in_c0_goes_both_ways(solved):
     up = next(pf.continuation(solved, 'c0', ds=0.05, steps=1, checks=False))
     assert down.attrs['c0'] < 0 < up.attrs['c0']
     assert up.attrs['dp_ds'] > 0 > down.attrs['dp_ds']
+
+
+def _up_down_asymmetry(result):
+    """(largest r of phi_h = 0 above the middle of its height) - (that below), over R."""
+    from pfmembrane.analysis import limit
+    from pfmembrane.io.checkpoint import Checkpoint
+    ck = Checkpoint(nodes=result.nodes, phi=result.phi, attrs=dict(result.attrs)).unfolded()
+    points = np.vstack(limit.level_set(ck))
+    middle = 0.5 * (points[:, 1].max() + points[:, 1].min())
+    return (points[points[:, 1] > middle, 0].max()
+            - points[points[:, 1] < middle, 0].max()) / result.scene.radius
+
+
+def test_the_prolate_bifurcates_to_pears_and_a_switch_follows_them():
+    """The full-box prolate at v = 0.8 (eps 0.04) in c0 = 2 C0 R from 2.5: its index goes
+    0 -> 1 without a fold near c0 2.72 (runs/atlas/notes.md), with an eigenvalue near zero
+    there; the switched continuation leaves the up-down symmetric shapes, its asymmetry
+    growing as c0 falls (the subcritical pears, index 1)."""
+    comm = pf.api.petsc(sys.argv[:1]).COMM_SELF
+    R = 0.4
+    scene = pf.Scene(reduced_volume=0.8, c0=2.5 / (2 * R), radius=R, box=(0.55, 2.75),
+                     branch='prolate')
+    grid = pf.Grid.uniform(scene, nodes=3079, comm=comm)
+    res = pf.solve(scene, grid, eps=0.04, options={'pf_start': 'sharp'}, checks=False)
+    route = []
+    for res in pf.continuation(res, 'c0', 0.05, 8, ds_max=0.05, checks=False):
+        route.append(res)
+        if res.attrs['index_change']:
+            break
+    assert [r.attrs['index_0'] for r in route[:-1]] == [0] * (len(route) - 1)
+    assert route[-1].attrs['index_0'] == 1 and route[-1].attrs['fold'] == 0
+    assert 2.70 < 2 * R * route[-1].attrs['c0'] < 2.78
+    assert abs(_up_down_asymmetry(route[-1])) < 1e-3
+    pears = list(pf.continuation(route[-1], 'c0', 0.1, 6, switch=True, checks=False))[:3]
+    assert abs(route[-1].attrs['critical_eigenvalue']) < 1e-3
+    asymmetry = [abs(_up_down_asymmetry(p)) for p in pears]
+    assert 0.02 < asymmetry[0] < asymmetry[1] < asymmetry[2]
+    c0 = [p.attrs['c0'] for p in pears]
+    assert c0[0] > c0[1] > c0[2]
+    assert all(p.attrs['index_0'] == 1 for p in pears)

@@ -6,6 +6,7 @@ the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
 tension, nu_V the pressure difference.
 """
 import ctypes
+import math
 import time
 
 import numpy as np
@@ -22,6 +23,7 @@ RESTART_DECREMENT = 1e-9
 RESTART_GTOL = 1e-6
 # Relative parameter step of the central difference F_p in the arclength corrector.
 DP = 1e-4
+CRITICAL_IT = 12  # inverse iterations for the critical mode at a bifurcation
 
 
 class SolveError(Exception):
@@ -367,6 +369,37 @@ class Solver:
         ksp.solve(Fp, b)
         self.factorizations += 1
         return self._split(b), self._negative_pivots(ksp)
+
+    def critical_mode(self, x, iterations=CRITICAL_IT):
+        """(m_x, m_nu, eigenvalue, negative pivots): the eigenvector of the Hessian of the Lagrangian on
+        the constraints' tangent space whose eigenvalue is nearest zero, by inverse
+        iteration with the stage-2 Jacobian at (x, nu) (one factorization; a solve with
+        the right-hand side (y, 0) applies the inverse of that Hessian to y's part in
+        the tangent space). At a bifurcation it points along the branch that crosses
+        this one. The start mixes every symmetry (up-down antisymmetric modes too)."""
+        P = self.P
+        K = P.bordered_matrix()
+        self.evaluate(x)
+        P.assemble_bordered(x, self.nu[0], self.C, 0.0)
+        ksp = self._direct_ksp('stage2_')
+        ksp.setOperators(K)
+        self.factorizations += 1
+        rhs, sol = K.createVecLeft(), K.createVecLeft()
+        y = x.duplicate()
+        start = P.layout.start
+        y.setArray(np.sin(1.0 + 0.618034 * np.arange(start, start + P.layout.nowned)))
+        value = math.nan
+        for _ in range(iterations):
+            y.scale(1.0 / y.norm())
+            rhs.zeroEntries()
+            rhs.getArray()[:P.layout.nowned] = y.getArray(readonly=True)
+            ksp.solve(rhs, sol)
+            z, nu = self._split(sol)
+            value = y.dot(y) / y.dot(z)  # 1 / Rayleigh quotient of the inverse
+            z.copy(y)
+        scale = math.sqrt(y.getSize()) / y.norm()  # unit RMS, the arclength norm
+        y.scale(scale)
+        return y, scale * nu, value, self._negative_pivots(ksp)
 
     def arclength(self, x, p, t, ds, at, max_it=25):
         """The pseudo-arclength corrector (Keller's bordering): Newton on

@@ -1,7 +1,7 @@
 """The shape atlas: branches in v by pseudo-arclength continuation, and the phase diagram.
 
     python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
-        [--families prolate oblate stomatocyte] [--c0 X ...] [--ds 0.05] [--steps 120]
+        [--families prolate oblate stomatocyte pear] [--c0 X ...] [--ds 0.05] [--steps 120]
         [--box Rb,Zb] [--out runs/atlas] [--force] [-- SOLVER OPTIONS]
     python -m pfmembrane.studies.atlas --plot runs/atlas
     python -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/stomatocyte --out DIR
@@ -53,9 +53,13 @@ from pfmembrane.studies import launch
 RADIUS = 0.4
 V_MIN, V_MAX = 0.55, 0.95
 # name: (branch of the start, half box, first v). The stomatocyte starts where its neck
-# is widest (`studies.crossings`) and is followed both ways.
+# is widest (`studies.crossings`) and is followed both ways. The pear is reached by branch
+# switching (SWITCHED): the prolate in the full box, where its up-down antisymmetric modes
+# live, down in v to its first index change without a fold, then along the critical mode.
 FAMILIES = {'prolate': ('prolate', True, 0.95), 'oblate': ('oblate', True, 0.95),
-            'stomatocyte': ('stomatocyte', False, 0.62)}
+            'stomatocyte': ('stomatocyte', False, 0.62), 'pear': ('prolate', False, 0.95)}
+SWITCHED = {'pear'}
+DEFAULT_FAMILIES = ['prolate', 'oblate', 'stomatocyte']
 CURVATURES = [-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 2.5]  # reduced c0 = 2 C0 R
 MARGIN = 5.0      # eps between the box and every sharp shape of a branch
 BOX_STEP = 0.05
@@ -64,6 +68,7 @@ DV = 0.0025       # v grid of the diagram
 SPHERE = '1 sphere'
 ENERGETIC = (SPHERE, '1 torus')   # the topologies with a level-set energy
 OTHER_TOPOLOGY = 3  # a continuation ends after this many points of another topology
+REFINE = 4          # step ratio of each bracketing of a bifurcation
 
 
 def box_of(family, c0, eps):
@@ -179,16 +184,26 @@ def trace(family, c0, args, comm, say):
     except (RuntimeError, UsageError) as e:
         say(f"-- {family} c0 {c0:g}: no start ({e})")
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
+    switch = family in SWITCHED
+    if switch and start.converged:
+        start, where = bifurcation(start, args)
+        if start is None:
+            return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min,
+                        ends=[f"no index change without a fold on the full-box {branch} "
+                              f"down to v {where:.4f}"], time=time.perf_counter() - t0)
+        say(f"-- {family} c0 {c0:g}: the {branch} branch bifurcates near v {where:.4f}")
     points = [dict(point(start, time.perf_counter() - t1), arclength=0.0, direction=0)]
     shapes = [(start.nodes, start.phi, dict(start.attrs))]
     ends = []
     if not start.converged:
         ends.append(f"the start at v {first:g} did not converge ({start.message})")
-    directions = [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX)) if go]
+    # a switched branch's two sides are mirror images: one is followed
+    directions = [1] if switch else [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX))
+                                     if go]
     for direction in directions if start.converged else []:
         last, stretch = time.perf_counter(), []
         for res in pf.continuation(start, 'reduced_volume', direction * args.ds, args.steps,
-                                   options=args.solver):
+                                   options=args.solver, switch=switch):
             now = time.perf_counter()
             p = dict(point(res, now - last), arclength=res.attrs['arclength'],
                      direction=direction)
@@ -206,7 +221,7 @@ def trace(family, c0, args, comm, say):
                             f"{p['v']:.4f}, {OTHER_TOPOLOGY} points without a level-set energy")
                 break
         else:
-            v_end = stretch[-1][0]['v'] if stretch else first
+            v_end = stretch[-1][0]['v'] if stretch else points[0]['v']
             ends.append(f"{'down' if direction < 0 else 'up'}: stopped at v {v_end:.4f} "
                         f"({'after ' + str(args.steps) + ' points' if len(stretch) == args.steps else 'the corrector failed'})")
         points += [p for p, _ in stretch]
@@ -214,6 +229,28 @@ def trace(family, c0, args, comm, say):
     points[0]['index'] = int(start.attrs.get('index_0', -1))  # set by the first continuation
     return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min, points=points,
                 ends=ends, shapes=shapes, time=time.perf_counter() - t0)
+
+
+def bifurcation(start, args):
+    """(a point just past the first index change without a fold, its v) on `start`'s
+    branch followed down in v, or (None, the last v) where there is none before V_MIN.
+    The change is bracketed again from the point before it with steps REFINE times
+    shorter, twice, so that the switch starts near the bifurcation."""
+    import pfmembrane as pf
+    v, ds, before = start.attrs['reduced_volume'], args.ds, start
+    for level in range(3):
+        for res in pf.continuation(before, 'reduced_volume', -ds, args.steps,
+                                   ds_max=ds if level else None, options=args.solver):
+            v = res.attrs['reduced_volume']
+            if res.attrs['index_change']:
+                break
+            if v < V_MIN:
+                return None, v
+            before = res
+        else:
+            return None, v
+        ds /= REFINE
+    return res, v
 
 
 def paths(points):
@@ -377,33 +414,41 @@ def diagram(branches, head, command, footer, pictures, out, about):
 def merge(sources, out):
     """One phase diagram of the branches of several atlases (SOURCE/atlas.json each): a
     family at a c0 that a later source followed too is the later one's (a family resolved
-    at a smaller eps, say), with that source's silhouettes. Not collective."""
+    at a smaller eps, say). Each region's silhouette comes from the branch files where the
+    sources still hold them, else from the sources' own silhouettes. Not collective."""
     kept, pictures = {}, {}
     for source in sources:
         with open(os.path.join(source, 'atlas.json')) as f:
             data = json.load(f)
         for b in data['branches']:
+            path = branch_path(source, b['family'], b['c0'])
+            b = load(path) if os.path.exists(path) else dict(b, shapes=[])
             b.setdefault('eps', data['args']['eps'])  # atlases written before eps per branch
             kept[b['family'], b['c0']] = b
             pictures[b['family'], b['c0']] = [s for s in data['silhouettes'] if s['c0'] == b['c0']
                                               and s['label'].split(' ')[0] == b['family']]
     branches = list(kept.values())
     os.makedirs(out, exist_ok=True)
-    shapes = []
+    shapes = silhouettes(branches)
     for c0 in sorted({b['c0'] for b in branches}):
+        drawn = {s['label'] for s in shapes if s['c0'] == c0}
         have = [s for (_, c), ss in pictures.items() if c == c0 for s in ss]
         for name, mid in middles(branches, c0):
             near = [s for s in have if s['label'] == name]
-            if near:
+            if name not in drawn and near:
                 shapes.append(min(near, key=lambda s: abs(s['v'] - mid)))
-    eps = {b['family']: b['eps'] for b in branches}
-    head = (f"The branches of {', '.join(sources)} (their branches.md), eps "
-            + ', '.join(f"{e:g} ({' '.join(f for f in eps if eps[f] == e)})"
-                        for e in dict.fromkeys(eps.values())) + '.')
+    at = {}  # eps: family: c0s
+    for b in branches:
+        at.setdefault(b['eps'], {}).setdefault(b['family'], []).append(b['c0'])
+    head = (f"The branches of {', '.join(sources)} (their branches.md); "
+            + '; '.join(f"eps {e:g}: " + ', '.join(f"{f} at c0 {', '.join(f'{c:g}' for c in c0s)}"
+                                                   for f, c0s in families.items())
+                        for e, families in sorted(at.items(), reverse=True)) + '.')
     footer = (f"{sum(len(b['points']) for b in branches)} points on {len(branches)} branches; "
               f"their times are in each source's diagram.md.")
+    branches = [{k: v for k, v in b.items() if k != 'shapes'} for b in branches]
     diagram(branches, head, f"`python -m pfmembrane.studies.atlas --merge {' '.join(sources)} "
-            f"--out {out}`", footer, shapes, out, dict(eps=min(eps.values()), merged=sources))
+            f"--out {out}`", footer, shapes, out, dict(eps=min(at), merged=sources))
 
 
 def folds(branch):
@@ -436,9 +481,11 @@ def silhouettes(branches):
     out = []
     for c0 in sorted({b['c0'] for b in branches}):
         for name, mid in middles(branches, c0):
-            candidates = [(abs(p['v'] - mid), b, i) for b in branches if b['c0'] == c0
-                          for i, p in enumerate(b['points'])
+            candidates = [(abs(p['v'] - mid), b, i) for b in branches
+                          if b['c0'] == c0 and b['shapes'] for i, p in enumerate(b['points'])
                           if label(b['family'], p['topology']) == name]
+            if not candidates:  # branches read from atlas.json alone (`merge`)
+                continue
             _, b, i = min(candidates, key=lambda t: t[0])
             nodes, phi, attrs = b['shapes'][i]
             ck = Checkpoint(nodes=nodes, phi=phi, attrs=attrs).unfolded()
@@ -453,7 +500,8 @@ def silhouettes(branches):
     return out
 
 
-COLOURS = {'prolate': '#4c72b0', 'oblate': '#dd8452', 'stomatocyte': '#55a868'}
+COLOURS = {'prolate': '#4c72b0', 'oblate': '#dd8452', 'stomatocyte': '#55a868',
+           'pear': '#c44e52'}
 
 
 def plot(out):
@@ -517,11 +565,9 @@ def plot(out):
         ax.annotate(s['label'], (s['v'], s['c0'] - 0.45 * step), ha='center', fontsize=7)
     ax.set_xlabel('reduced volume v')
     ax.set_ylabel('reduced spontaneous curvature c0 = 2 C0 R')
-    eps = {b['family']: b.get('eps', data['args']['eps']) for b in branches}
-    ax.set_title('least level-set energy (phase fields, eps '
-                 + ', '.join(f"{e:g}" + ('' if len(set(eps.values())) == 1 else
-                                         f" {'/'.join(f for f in eps if eps[f] == e)}")
-                             for e in dict.fromkeys(eps.values())) + '); | transitions')
+    eps = sorted({b.get('eps', data['args']['eps']) for b in branches}, reverse=True)
+    ax.set_title(f"least level-set energy (phase fields, eps {', '.join(f'{e:g}' for e in eps)}"
+                 + (', per branch in diagram.md' if len(eps) > 1 else '') + '); | transitions')
     fig.savefig(os.path.join(out, 'diagram.png'), dpi=130, bbox_inches='tight')
     plt.close(fig)
 
@@ -532,7 +578,7 @@ def main(argv=None):
                                  description=__doc__.splitlines()[0])
     launch.group_arguments(ap, 'branch')
     launch.grid_arguments(ap, 0.02, 40000, "branch (default: its family's sharp shapes')")
-    ap.add_argument('--families', nargs='+', default=list(FAMILIES), choices=list(FAMILIES))
+    ap.add_argument('--families', nargs='+', default=DEFAULT_FAMILIES, choices=list(FAMILIES))
     ap.add_argument('--c0', type=float, nargs='+', default=CURVATURES,
                     help='reduced spontaneous curvatures 2 C0 R')
     ap.add_argument('--ds', type=float, default=0.05, help='first arclength step')
