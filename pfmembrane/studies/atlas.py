@@ -186,7 +186,8 @@ def trace(family, c0, args, comm, say):
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
     switch = family in SWITCHED
     if switch and start.converged:
-        start, where = bifurcation(start, args)
+        start, where = bifurcation(start, args, lambda text: say(f"   {family} c0 {c0:g}: "
+                                                                 f"{branch} {text}"))
         if start is None:
             return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min,
                         ends=[f"no index change without a fold on the full-box {branch} "
@@ -231,17 +232,19 @@ def trace(family, c0, args, comm, say):
                 ends=ends, shapes=shapes, time=time.perf_counter() - t0)
 
 
-def bifurcation(start, args):
+def bifurcation(start, args, say):
     """(a point just past the first index change without a fold, its v) on `start`'s
     branch followed down in v, or (None, the last v) where there is none before V_MIN.
     The change is bracketed again from the point before it with steps REFINE times
-    shorter, twice, so that the switch starts near the bifurcation."""
+    shorter, twice, so that the switch starts near the bifurcation. Each point is
+    reported through `say`."""
     import pfmembrane as pf
     v, ds, before = start.attrs['reduced_volume'], args.ds, start
     for level in range(3):
         for res in pf.continuation(before, 'reduced_volume', -ds, args.steps,
                                    ds_max=ds if level else None, options=args.solver):
             v = res.attrs['reduced_volume']
+            say(f"v {v:.4f} index {res.attrs['index_0']} (step {ds:g})")
             if res.attrs['index_change']:
                 break
             if v < V_MIN:
