@@ -39,7 +39,7 @@ help:
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
 	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
 	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
-	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, the phase diagram, runs/atlas/"
+	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, eps 0.01 where 0.02 fails, the merged diagram in runs/atlas/merged"
 
 $(PY):
 	@if ! /usr/bin/python3 -c 'import petsc4py, slepc4py, mpi4py, h5py, scipy, matplotlib' 2>/dev/null; then \
