@@ -234,24 +234,27 @@ def trace(family, c0, args, comm, say):
 
 def bifurcation(start, args, say):
     """(a point just past the first index change without a fold, its v) on `start`'s
-    branch followed down in v, or (None, the last v) where there is none before V_MIN.
+    branch followed down in v (and on, should it fold back), or (None, the least v it
+    reached) where there is none before V_MIN or the end of the continuation.
     The change is bracketed again from the point before it with steps REFINE times
     shorter, twice, so that the switch starts near the bifurcation. Each point is
     reported through `say`."""
     import pfmembrane as pf
-    v, ds, before = start.attrs['reduced_volume'], args.ds, start
+    v = least = start.attrs['reduced_volume']
+    ds, before = args.ds, start
     for level in range(3):
         for res in pf.continuation(before, 'reduced_volume', -ds, args.steps,
                                    ds_max=ds if level else None, options=args.solver):
             v = res.attrs['reduced_volume']
+            least = min(least, v)
             say(f"v {v:.4f} index {res.attrs['index_0']} (step {ds:g})")
             if res.attrs['index_change']:
                 break
             if v < V_MIN:
-                return None, v
+                return None, least
             before = res
         else:
-            return None, v
+            return None, least
         ds /= REFINE
     return res, v
 
