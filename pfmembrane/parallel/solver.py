@@ -6,6 +6,7 @@ the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
 tension, nu_V the pressure difference.
 """
 import ctypes
+import functools
 import math
 import time
 
@@ -360,43 +361,46 @@ class Solver:
         without inertia)."""
         K = self.P.bordered_matrix()
         Fp = self._parameter_derivative(x, p, at, K.createVecLeft())
+        ksp = self._jacobian_at(x)
+        Fp.scale(-1.0)
+        b = K.createVecLeft()
+        ksp.solve(Fp, b)
+        return self._split(b), self._negative_pivots(ksp)
+
+    def _jacobian_at(self, x):
+        """The stage-2 direct solver with the Jacobian at the converged (x, nu) as its
+        operator (factored at its first solve)."""
+        K = self.P.bordered_matrix()
         self.evaluate(x)
         self.P.assemble_bordered(x, self.nu[0], self.C, 0.0)
         ksp = self._direct_ksp('stage2_')
         ksp.setOperators(K)
-        Fp.scale(-1.0)
-        b = K.createVecLeft()
-        ksp.solve(Fp, b)
         self.factorizations += 1
-        return self._split(b), self._negative_pivots(ksp)
+        return ksp
 
     def critical_mode(self, x, iterations=CRITICAL_IT):
-        """(m_x, m_nu, eigenvalue, negative pivots): the eigenvector of the Hessian of the Lagrangian on
-        the constraints' tangent space whose eigenvalue is nearest zero, by inverse
-        iteration with the stage-2 Jacobian at (x, nu) (one factorization; a solve with
-        the right-hand side (y, 0) applies the inverse of that Hessian to y's part in
-        the tangent space). At a bifurcation it points along the branch that crosses
-        this one. The start mixes every symmetry (up-down antisymmetric modes too)."""
-        P = self.P
-        K = P.bordered_matrix()
-        self.evaluate(x)
-        P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-        ksp = self._direct_ksp('stage2_')
-        ksp.setOperators(K)
-        self.factorizations += 1
-        rhs, sol = K.createVecLeft(), K.createVecLeft()
-        y = x.duplicate()
-        start = P.layout.start
-        y.setArray(np.sin(1.0 + 0.618034 * np.arange(start, start + P.layout.nowned)))
+        """(m_x, m_nu, eigenvalue, negative pivots): the eigenvector of the Hessian of
+        the Lagrangian on the constraints' tangent space whose eigenvalue is nearest
+        zero, by inverse iteration with the stage-2 Jacobian at (x, nu) (one
+        factorization; a solve with the right-hand side (y, 0) applies the inverse of
+        that Hessian to y's part in the tangent space). At a bifurcation it points along
+        the branch that crosses this one. The start mixes every symmetry (up-down
+        antisymmetric modes too)."""
+        lay = self.P.layout
+        ksp = self._jacobian_at(x)
+        rhs, sol = ksp.getOperators()[0].createVecs()
+        rhs.zeroEntries()  # the constraint rows stay 0
+        y, z = x.duplicate(), x.duplicate()
+        y.setArray(np.sin(1.0 + 0.618034 * np.arange(lay.start, lay.start + lay.nowned)))
         value = math.nan
         for _ in range(iterations):
             y.scale(1.0 / y.norm())
-            rhs.zeroEntries()
-            rhs.getArray()[:P.layout.nowned] = y.getArray(readonly=True)
+            rhs.getArray()[:lay.nowned] = y.getArray(readonly=True)
             ksp.solve(rhs, sol)
-            z, nu = self._split(sol)
-            value = y.dot(y) / y.dot(z)  # 1 / Rayleigh quotient of the inverse
+            z.setArray(sol.getArray(readonly=True)[:lay.nowned])
+            value = 1.0 / y.dot(z)  # |y| = 1: the inverse's Rayleigh quotient, inverted
             z.copy(y)
+        _, nu = self._split(sol)
         scale = math.sqrt(y.getSize()) / y.norm()  # unit RMS, the arclength norm
         y.scale(scale)
         return y, scale * nu, value, self._negative_pivots(ksp)
@@ -505,10 +509,15 @@ class Solver:
         return self._ksps[stage]
 
 
+@functools.cache
+def _libpetsc():
+    return ctypes.CDLL(PETSc.__file__)  # libpetsc comes with petsc4py's extension
+
+
 def redundant_negative_pivots(pc):
     """The negative pivots of the factorization inside a PCREDUNDANT, through the C API
     that petsc4py does not wrap (SLEPc's spectrum slicing reads it the same way)."""
-    lib = ctypes.CDLL(PETSc.__file__)  # libpetsc comes with petsc4py's extension
+    lib = _libpetsc()
     inner, inner_pc, factor = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
     nneg = np.zeros(1, dtype=PETSc.IntType)
     for call, args in ((lib.PCRedundantGetKSP, (ctypes.c_void_p(pc.handle), ctypes.byref(inner))),

@@ -238,13 +238,14 @@ def bifurcation(start, args, say):
     reached) where there is none before V_MIN or the end of the continuation.
     The change is bracketed again from the point before it with steps REFINE times
     shorter, twice, so that the switch starts near the bifurcation. Each point is
-    reported through `say`."""
+    reported through `say`; only the one returned gets the level-set checks."""
     import pfmembrane as pf
     v = least = start.attrs['reduced_volume']
     ds, before = args.ds, start
     for level in range(3):
         for res in pf.continuation(before, 'reduced_volume', -ds, args.steps,
-                                   ds_max=ds if level else None, options=args.solver):
+                                   ds_max=ds if level else None, options=args.solver,
+                                   checks=False):
             v = res.attrs['reduced_volume']
             least = min(least, v)
             say(f"v {v:.4f} index {res.attrs['index_0']} (step {ds:g})")
@@ -256,6 +257,8 @@ def bifurcation(start, args, say):
         else:
             return None, least
         ds /= REFINE
+    res.attrs.update(pf.api.phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
+                                               res.phi, res.attrs))
     return res, v
 
 
@@ -380,14 +383,15 @@ def write(branches, args, out, wall):
               f"{computed / max(points, 1):.2f} s per point; the median continuation step "
               f"{np.nanmedian([median_step(b) for b in branches]):.2f} s. This invocation: "
               f"{wall:.0f} s wall on {args.np} ranks (branches it reused cost it nothing).")
-    diagram([{k: v for k, v in b.items() if k != 'shapes'} for b in branches], head, command,
-            footer, silhouettes(branches), out, dict(eps=args.eps, nodes=args.nodes, np=args.np))
+    diagram(branches, head, command, footer, silhouettes(branches), out,
+            dict(eps=args.eps, nodes=args.nodes, np=args.np))
 
 
 def diagram(branches, head, command, footer, pictures, out, about):
     """OUT/diagram.md, OUT/atlas.json (`about` the run, the branches without their
     shapes, the silhouettes `pictures`: everything the figures need) and the figures.
     Not collective."""
+    branches = [{k: v for k, v in b.items() if k != 'shapes'} for b in branches]
     vs = grid_v()
     lines = ["# The phase diagram of the spontaneous-curvature model\n", head + "\n",
              f"Regenerate: {command}.\n",
@@ -452,7 +456,6 @@ def merge(sources, out):
                         for e, families in sorted(at.items(), reverse=True)) + '.')
     footer = (f"{sum(len(b['points']) for b in branches)} points on {len(branches)} branches; "
               f"their times are in each source's diagram.md.")
-    branches = [{k: v for k, v in b.items() if k != 'shapes'} for b in branches]
     diagram(branches, head, f"`python -m pfmembrane.studies.atlas --merge {' '.join(sources)} "
             f"--out {out}`", footer, shapes, out, dict(eps=min(at), merged=sources))
 
