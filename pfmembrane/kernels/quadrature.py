@@ -4,7 +4,7 @@ Weights carry the axisymmetric measure, so sum(w * f) = int_Omega f dOmega =
 2 pi int int f r dr dz over the solid of revolution.
 """
 import numpy as np
-from scipy.spatial import Delaunay
+from scipy.spatial import ConvexHull, Delaunay
 
 # Symmetric Gauss rules on the reference triangle (Dunavant): degree ->
 # (barycentric points, weights summing to 1).
@@ -35,8 +35,39 @@ def triangulate(nodes):
     return Delaunay(nodes).simplices.astype(np.int64)
 
 
-def rule(nodes, triangles, degree=4, axisymmetric=True):
-    """Quadrature points (P x 2) and weights (P,) on the given triangles.
+def cells(nodes, plane=None):
+    """Background cells (M x 3 x 2 vertex coordinates) that tile the nodes'
+    box: the Delaunay triangles of the nodes and, with a mirror `plane`
+    (nodes in z >= plane), of the feet on it of the nodes whose Voronoi cells
+    meet it, so that they tile the half box also where no node lies on the
+    plane. The nodes' mirror images would do it too, but a node pair and its
+    images are always cocircular: which diagonal Qhull takes would then
+    change the quadrature with the last bits of the nodes. Not collective."""
+    if plane is not None:
+        nodes = np.vstack([nodes, _feet(nodes, plane)])
+    return nodes[triangulate(nodes)]
+
+
+def _feet(nodes, plane, tol=1e-12):
+    """(r, plane) for the nodes off the plane that are nearest to some point
+    (r, plane): |(r, plane) - a|^2 = r^2 - 2 r r_a + (r_a^2 + d_a^2), so these
+    are the vertices of the lower convex hull of (r_a, r_a^2 + d_a^2)."""
+    r, d = nodes[:, 0], nodes[:, 1] - plane
+    hull = ConvexHull(np.column_stack([r, r ** 2 + d ** 2]))
+    lower = np.unique(hull.simplices[hull.equations[:, 1] < 0])
+    lower = lower[d[lower] > tol * max(1.0, abs(plane))]
+    return np.column_stack([r[lower], np.full(len(lower), plane)])
+
+
+def _areas(v):
+    """Unsigned areas of triangles (M x 3 x 2)."""
+    return 0.5 * np.abs((v[:, 1, 0] - v[:, 0, 0]) * (v[:, 2, 1] - v[:, 0, 1])
+                        - (v[:, 2, 0] - v[:, 0, 0]) * (v[:, 1, 1] - v[:, 0, 1]))
+
+
+def rule(v, degree=4, axisymmetric=True):
+    """Quadrature points (P x 2) and weights (P,) on the triangles `v`
+    (M x 3 x 2 vertex coordinates, e.g. `cells`).
 
     Not collective. Exact for polynomials of `degree` in (r, z) in the planar
     measure; with `axisymmetric` the weights include 2 pi r (exact to degree-1).
@@ -44,9 +75,7 @@ def rule(nodes, triangles, degree=4, axisymmetric=True):
     if degree not in _RULES:
         raise ValueError(f"quadrature degree {degree} not in {DEGREES}")
     bary, wref = (np.asarray(a, dtype=float) for a in _RULES[degree])
-    v = nodes[triangles]                                  # M x 3 x 2
-    area = 0.5 * np.abs((v[:, 1, 0] - v[:, 0, 0]) * (v[:, 2, 1] - v[:, 0, 1])
-                        - (v[:, 2, 0] - v[:, 0, 0]) * (v[:, 1, 1] - v[:, 0, 1]))
+    area = _areas(v)
     points = np.einsum('qk,mkd->mqd', bary, v).reshape(-1, 2)
     weights = (area[:, None] * wref[None, :]).ravel()
     if axisymmetric:

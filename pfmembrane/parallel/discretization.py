@@ -57,10 +57,12 @@ class Grid:
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles, partition)
-        points, weights = quadrature.rule(nodes, self.layout.my_triangles, degree)
+        cells = quadrature.cells(nodes, plane)
+        cells = cells[self.layout.owns(cells)]
+        points, weights = quadrature.rule(cells, degree)
         if plane is not None:
             weights = 2.0 * weights
-        self.per_cell = len(points) // max(len(self.layout.my_triangles), 1)
+        self.per_cell = len(points) // max(len(cells), 1)
         self.nquad = comm.tompi4py().allreduce(len(points))
         self.ops = self._operators(points, weights)
         self._gram = None

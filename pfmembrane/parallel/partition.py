@@ -3,7 +3,7 @@
 Every rank holds the node coordinates (per-node data is small). Each rank owns
 a contiguous block of the free unknowns, renumbered after a coordinate
 bisection (or a graph partition of the Delaunay adjacency), owns the
-background triangles nearest to its nodes, and sees as ghosts the off-rank
+background cells nearest to its nodes, and sees as ghosts the off-rank
 free nodes its quadrature points touch.
 """
 import numpy as np
@@ -98,14 +98,15 @@ class Layout:
         counts = np.bincount(owner, minlength=comm.getSize())
         self.start, self.nowned = int(counts[:rank].sum()), int(counts[rank])
         self.nglobal = len(self.order)
-        node_rank = np.full(len(free), -1)
-        node_rank[free_nodes] = owner
-        # A triangle goes to the owner of the free node nearest its centroid.
-        centroid = nodes[triangles].mean(axis=1)
-        nearest = cKDTree(nodes[free_nodes]).query(centroid)[1]
-        self.my_triangles = triangles[node_rank[free_nodes[nearest]] == rank]
+        self._free_rank = (cKDTree(nodes[free_nodes]), owner)
         self.dm = PETSc.DMShell().create(comm)
         self.dm.setGlobalVector(self.create_vec())
+
+    def owns(self, cells):
+        """Which background cells (M x 3 x 2) this rank integrates: each goes to
+        the owner of the free node nearest its centroid. Not collective."""
+        tree, owner = self._free_rank
+        return owner[tree.query(cells.mean(axis=1))[1]] == self.comm.getRank()
 
     def set_ghosts(self, touched):
         """Make the off-rank unknowns among `touched` (global numbers) ghosts."""
