@@ -280,3 +280,21 @@ def test_first_peak_is_scipys_leftmost_prominent_peak():
                                          mode='constant'), 0.0]
         p = rng.uniform(0.005, 0.3) * y.max()
         assert nodesets.first_peak(y, p) == find_peaks(y, prominence=p)[0][0]
+
+
+def test_a_mirror_plane_frees_its_nodes_and_keeps_the_corners():
+    # z = 0 as the half box's mirror plane: the CVT of the mirrored set has no
+    # row on it, so its nodes leave it; on a boundary they stay on it.
+    nodes = jittered_lattice(20, 40)
+    plane = nodes[:, 1] == 0.0
+    free, _, _ = cvt.lloyd(nodes, BOX, band, mirror=True)
+    held, _, _ = cvt.lloyd(nodes, BOX, band)
+    assert (held[plane, 1] == 0.0).all()
+    corners = plane & ((nodes[:, 0] == 0.0) | (nodes[:, 0] == BOX[0]))
+    np.testing.assert_array_equal(free[corners], nodes[corners])
+    assert (free[plane & ~corners, 1] > 0.0).all()
+    assert (free[:, 1] >= 0.0).all()
+    # Off the plane, the rows of a mirrored CVT sit about half a spacing above it.
+    h = nodesets.nodal_spacing(free, plane=0.0)
+    lowest = free[plane & ~corners, 1] / h[plane & ~corners]
+    assert 0.3 < np.median(lowest) < 0.7

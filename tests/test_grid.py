@@ -122,3 +122,42 @@ def test_bisection_cuts_across_the_longer_side_into_parts_of_equal_size(parts):
     assert len(counts) == parts and np.ptp(counts) <= 1
     if parts == 2:  # one straight cut across z
         assert xy[part == 0, 1].max() <= xy[part == 1, 1].min()
+
+
+def test_cells_tile_the_half_box_with_no_nodes_on_the_plane():
+    x = nodes.uniform(BOX, 800, half=True)
+    plane = BOX[1] / 2
+    rng = np.random.default_rng(1)
+    off = (x[:, 1] == plane) & (x[:, 0] > 0) & (x[:, 0] < BOX[0])
+    x[off, 1] += rng.uniform(0.2, 0.5, off.sum()) * 0.06   # lift the plane's row
+    cells = quadrature.cells(x, plane)
+    assert cells[:, :, 1].min() == plane
+    pts, w = quadrature.rule(cells, 4, axisymmetric=False)
+    for i, j in [(0, 0), (1, 2), (3, 1)]:
+        exact = BOX[0] ** (i + 1) / (i + 1) * (BOX[1] ** (j + 1) - plane ** (j + 1)) / (j + 1)
+        assert abs(np.dot(w, pts[:, 0] ** i * pts[:, 1] ** j) - exact) < 1e-12 * exact
+    # With the row on the plane the cells are the nodes' own Delaunay triangles.
+    y = nodes.uniform(BOX, 800, half=True)
+    np.testing.assert_array_equal(quadrature.cells(y, plane), y[quadrature.triangulate(y)])
+
+
+def test_spacing_near_the_mirrors_is_continuous_in_the_nodes():
+    # Nodes and their images are cocircular in pairs; h_a must not depend on
+    # which diagonal Qhull takes, so 1e-10 in the nodes gives ~1e-10 in h_a.
+    x = nodes.uniform(BOX, 800, half=True)
+    plane = BOX[1] / 2
+    rng = np.random.default_rng(2)
+    x[x[:, 1] == plane, 1] += 0.01                          # no row on the plane
+    inner = (x[:, 0] > 0) & (x[:, 0] < BOX[0]) & (x[:, 1] < BOX[1])
+    x[inner] += rng.uniform(-3e-3, 3e-3, (inner.sum(), 2))
+    y = x.copy()
+    y[inner] += rng.uniform(-1e-10, 1e-10, (inner.sum(), 2))
+    for mirror in (None, plane):
+        hx, hy = nodes.nodal_spacing(x, plane=mirror), nodes.nodal_spacing(y, plane=mirror)
+        assert np.abs(hx - hy).max() < 1e-8
+    # On a lattice the mirrors' nodes keep the spacing of the others.
+    lat = nodes.uniform(BOX, 800, half=True)
+    h = nodes.nodal_spacing(lat, plane=plane)
+    away = (lat[:, 0] < BOX[0] - 0.2) & (lat[:, 1] < BOX[1] - 0.2)
+    on = away & ((lat[:, 1] == plane) | (lat[:, 0] == 0.0))
+    assert np.abs(h[on] / np.median(h[away]) - 1.0).max() < 0.02
