@@ -5,7 +5,7 @@ import h5py
 import pytest
 
 from pfmembrane.io import checkpoint
-from pfmembrane.studies import sequence
+from pfmembrane.studies import launch, sequence
 from pfmembrane.scenes import SHARP, SHARP_ERROR
 
 SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'
@@ -50,6 +50,35 @@ def test_a_sequence_runs_reuses_and_skips(tmp_path, in_root, capfd):
     assert 'pfmembrane: oblate' not in second  # nothing converged runs again
     assert all(row.endswith('| reused |') for row in out.read_text().splitlines()
                if row.startswith('| 0'))
+
+
+@pytest.mark.slow
+def test_a_half_box_adaptive_sequence_in_process_equals_one_run_per_step(tmp_path, in_root):
+    # Two relocations of a half-box solve (the mirror plane's nodes leave it): the
+    # in-process sequence and one command-line run per step agree far below 1e-8.
+    half = f'{SMALL}-pf_symmetric\n'
+    files = {'01_U.opts': f'-pf_output {tmp_path}/U.h5\n',
+             '02_A.opts': f'-pf_stage1 none\n-pf_restart {tmp_path}/U.h5\n-pf_adapt 100\n'
+                          f'-pf_output {tmp_path}/A.h5\n',
+             '03_B.opts': f'-pf_stage1 none\n-pf_restart {tmp_path}/A.h5\n-pf_adapt 1000\n'
+                          f'-pf_eps 0.05\n-pf_output {tmp_path}/B.h5\n'}
+    for name, text in files.items():
+        (tmp_path / name).write_text(half + text)
+    assert sequence.main([str(tmp_path), '--scene', 'options/discocyte.opts', '--np', '1',
+                          '--out', str(tmp_path / 'table.md')]) == 0
+    inproc = {k: checkpoint.read(tmp_path / f'{k}.h5') for k in 'UAB'}
+    for name in sorted(files):
+        done = launch.run(launch.command(1, '-options_file', 'options/discocyte.opts',
+                                         '-options_file', str(tmp_path / name)),
+                          check=False, capture_output=True)
+        assert done.returncode == 0, done.stderr
+    for k, a in inproc.items():
+        b = checkpoint.read(tmp_path / f'{k}.h5')
+        assert a.attrs['converged'] == b.attrs['converged'] == 1
+        assert abs(b.attrs['energy'] / a.attrs['energy'] - 1.0) < 1e-10
+    plane = 0.5 * inproc['U'].attrs['box'][1]
+    assert (inproc['U'].nodes[:, 1] == plane).sum() > 10
+    assert (inproc['B'].nodes[:, 1] == plane).sum() == 2  # the corners only
 
 
 def fake_checkpoint(path, n_nodes, symmetric, eps=0.01, energy=9.18):
