@@ -227,7 +227,10 @@ class Result:
                     spacing_smoothing=int(a.get('spacing_smoothing', 0)))
 
     def locality(self, plane=None):
-        """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box)."""
+        """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box):
+        its grid's, when it has its grid."""
+        if self.grid is not None and self.grid.discrete.plane == plane:
+            return self.grid.discrete.beta
         b = self.basis
         return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane)
 

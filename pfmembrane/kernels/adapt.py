@@ -24,15 +24,16 @@ RASTER = 0.5  # raster spacing / smallest nodal spacing of the old grid
 RASTER_QUANTILE = 0.05
 
 
-def gradient_raster(comm, nodes, phi, box, beta, cutoff, plane=None):
+def gradient_raster(comm, nodes, phi, box, beta, cutoff, h, plane=None):
     """|grad phi_h| on a regular raster of the box (of its half z >= `plane`
     for a half-box solve), and the raster's axes; for `phi` of shape (K, N),
     K fields on the same nodes (a branch), the largest of their |grad phi_h|.
 
     Collective (`comm` is an mpi4py communicator): each rank evaluates a
-    share of the raster rows. `beta` is the locality phi_h was solved with.
+    share of the raster rows. `beta` is the locality phi_h was solved with,
+    `h` the nodes' `nodal_spacing` (it sets the raster step).
     """
-    step = RASTER * np.quantile(nodal_spacing(nodes, plane=plane), RASTER_QUANTILE)
+    step = RASTER * np.quantile(h, RASTER_QUANTILE)
     r, z = raster_axes(box, step, plane or 0.0)
     mine = np.array_split(np.arange(len(z)), comm.Get_size())[comm.Get_rank()]
     R, Z = np.meshgrid(r, z[mine], indexing='xy')
@@ -61,7 +62,8 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
     """
     t0 = time.perf_counter()
     fields = phi if along is None else np.vstack([phi, along])
-    r, z, grad = gradient_raster(comm, nodes, fields, box, beta, cutoff, plane)
+    h = nodal_spacing(nodes, plane=plane)
+    r, z, grad = gradient_raster(comm, nodes, fields, box, beta, cutoff, h, plane)
     t_raster = time.perf_counter() - t0
     # The tessellation works in [0, Rb] x [0, Zb - z0].
     shift = np.array([0.0, z[0]])
@@ -79,7 +81,7 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
     new_phi = transfer(nodes, phi, beta, cutoff, new, box, plane)
     info = dict(iterations=iterations, movement=movement, raster=grad.shape,
                 time_raster=t_raster, time=time.perf_counter() - t0,
-                h_min=(spacing_peak(nodal_spacing(nodes, plane=plane)),
+                h_min=(spacing_peak(h),
                        spacing_peak(nodal_spacing(new, plane=plane))))
     return new, new_phi, info
 

@@ -150,7 +150,7 @@ def nodal_spacings(nodes, smoothing, plane=None, axis=True):
                       | ((~across_axis[b] | (full[a, 0] == 0.0))
                          & (~across_plane[b] | (full[a, 1] == plane)))
                       | ((owner[b] == a) & (across_axis[b] != across_plane[b])))
-    a, b = a[keep], neighbours[keep]
+    a, b = a[keep], b[keep]
     count = np.bincount(a, minlength=n)
     dist = np.linalg.norm(full[b] - full[a], axis=1)
     raw = h = np.bincount(a, dist, minlength=n) / count

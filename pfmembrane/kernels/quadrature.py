@@ -35,16 +35,19 @@ def triangulate(nodes):
     return Delaunay(nodes).simplices.astype(np.int64)
 
 
-def cells(nodes, plane=None):
+def cells(nodes, triangles, plane=None):
     """Background cells (M x 3 x 2 vertex coordinates) that tile the nodes'
-    box: the Delaunay triangles of the nodes and, with a mirror `plane`
-    (nodes in z >= plane), of the feet on it of the nodes whose Voronoi cells
-    meet it, so that they tile the half box also where no node lies on the
-    plane. The nodes' mirror images would do it too, but a node pair and its
-    images are always cocircular: which diagonal Qhull takes would then
+    box: their Delaunay `triangles` (`triangulate`) or, with a mirror `plane`
+    (nodes in z >= plane) that not all nodes nearest to it lie on, the
+    triangles of the nodes and of the feet on it of the nodes whose Voronoi
+    cells meet it, so that they tile the half box also where no node lies on
+    the plane. The nodes' mirror images would do it too, but a node pair and
+    its images are always cocircular: which diagonal Qhull takes would then
     change the quadrature with the last bits of the nodes. Not collective."""
-    if plane is not None:
-        nodes = np.vstack([nodes, _feet(nodes, plane)])
+    feet = _feet(nodes, plane) if plane is not None else nodes[:0]
+    if len(feet) == 0:
+        return nodes[triangles]
+    nodes = np.vstack([nodes, feet])
     return nodes[triangulate(nodes)]
 
 

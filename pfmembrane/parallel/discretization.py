@@ -56,9 +56,9 @@ class Grid:
         self.beta = gamma / smoothed ** 2  # `locality`, from the triangulation h needs too
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
-        self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles, partition)
-        cells = quadrature.cells(nodes, plane)
-        cells = cells[self.layout.owns(cells)]
+        self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles,
+                             quadrature.cells(nodes, self.triangles, plane), partition)
+        cells = self.layout.my_cells
         points, weights = quadrature.rule(cells, degree)
         if plane is not None:
             weights = 2.0 * weights

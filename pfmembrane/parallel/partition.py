@@ -87,7 +87,7 @@ class Layout:
     unknowns first, then the ghosts in increasing global number.
     """
 
-    def __init__(self, comm, nodes, free, triangles, partition='bisection'):
+    def __init__(self, comm, nodes, free, triangles, cells, partition='bisection'):
         self.comm = comm
         rank = comm.getRank()
         owner = partition_free_nodes(comm, nodes, free, triangles, partition)
@@ -98,15 +98,12 @@ class Layout:
         counts = np.bincount(owner, minlength=comm.getSize())
         self.start, self.nowned = int(counts[:rank].sum()), int(counts[rank])
         self.nglobal = len(self.order)
-        self._free_rank = (cKDTree(nodes[free_nodes]), owner)
+        # A background cell (M x 3 x 2) goes to the owner of the free node nearest
+        # its centroid.
+        nearest = cKDTree(nodes[free_nodes]).query(cells.mean(axis=1))[1]
+        self.my_cells = cells[owner[nearest] == rank]
         self.dm = PETSc.DMShell().create(comm)
         self.dm.setGlobalVector(self.create_vec())
-
-    def owns(self, cells):
-        """Which background cells (M x 3 x 2) this rank integrates: each goes to
-        the owner of the free node nearest its centroid. Not collective."""
-        tree, owner = self._free_rank
-        return owner[tree.query(cells.mean(axis=1))[1]] == self.comm.getRank()
 
     def set_ghosts(self, touched):
         """Make the off-rank unknowns among `touched` (global numbers) ghosts."""
