@@ -455,6 +455,45 @@ def energy_reference(reduced_volume, branch, c0=0.0, radius=1.0, k=1.0):
     return solve(reduced_volume, branch, c0=c0, radius=radius, k=k).energy
 
 
+def _embedded_prolate(reduced_volume, c, n):
+    """The symmetric prolate of `solve` (unit R0, C0 R0 = c, n modes) on the grid of all
+    modes: (that grid, its variables)."""
+    half = _Grid(n, True)
+    x_half, _ = _follow(half, 'prolate', reduced_volume, c)
+    grid = _Grid(n, False)
+    x = np.zeros(grid.modes.size + 1)
+    x[:-1][grid.modes % 2 == 0], x[-1] = x_half[:-1], x_half[-1]
+    return grid, x
+
+
+def pear_mode(reduced_volume, c0=0.0, radius=1.0, n=32):
+    """Least eigenvalue of the up-down antisymmetric second variation of the
+    symmetric prolate at (v, C0): the Hessian of the Lagrangian on the tangent
+    space of area, volume and closure, in the variables (a_1 ... a_n, l) of unit
+    R0 and k, over the eigenvectors that lie mostly in the odd modes. Its sign
+    change is the pear bifurcation of the prolate (SBL's D_pe); its scale depends
+    on the coordinates, its zero does not. Returns (eigenvalue, unit eigenvector)."""
+    from scipy.linalg import null_space
+    c = c0 * radius
+    grid, x = _embedded_prolate(reduced_volume, c, n)
+    _, gradients = _evaluate(grid, x, c)
+    J = gradients[1:]
+    multipliers = np.linalg.lstsq(J.T, gradients[0], rcond=None)[0]
+    H = grid.hessians(x, c)
+    Z = null_space(J)
+    values, vectors = np.linalg.eigh(Z.T @ (H[0] - np.tensordot(multipliers, H[1:], axes=1)) @ Z)
+    vectors = Z @ vectors
+    odd = np.append(grid.modes % 2 == 1, False)
+    anti = np.flatnonzero((vectors[odd] ** 2).sum(axis=0) > 0.5)
+    return values[anti[0]], vectors[:, anti[0]]
+
+
+def pear_bifurcation(reduced_volume, bracket, radius=1.0, n=32):
+    """C0 of the pear bifurcation of the symmetric prolate at v: the zero of
+    `pear_mode` in C0 within `bracket` (raises ValueError without a sign change)."""
+    return brentq(lambda c0: pear_mode(reduced_volume, c0, radius, n)[0], *bracket, xtol=1e-10)
+
+
 SHAPE_MODES = 48    # sine modes of `shape_energy`: the v = 0.8 shapes need 12-16
 
 
