@@ -14,7 +14,7 @@ DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-sci
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-fast test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 phase-diagram bench bench-basis bench-scenes branches figures extremes limits clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 phase-diagram pears bench bench-basis bench-scenes branches figures extremes limits clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -39,6 +39,7 @@ help:
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
 	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
 	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
+	@echo "make pears    the prolate's pear bifurcation in c0 at v 0.8 per eps, against the sharp D_pe line (runs/pears)"
 	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, eps 0.01 where 0.02 fails, the merged diagram in runs/atlas/merged"
 
 $(PY):
@@ -148,6 +149,10 @@ extremes: install
 
 limits: install
 	$(PY) -m pfmembrane.studies.limits --np $(NP) --out runs/limits
+
+pears: install
+	$(PY) -m pfmembrane.studies.pears --sharp --out runs/pears
+	$(PY) -m pfmembrane.studies.pears --np $(NP) --v 0.8 --out runs/pears $(FORCE)
 
 clean:
 	rm -rf $(VENV) runs/check.h5

@@ -86,14 +86,10 @@ def test_continuation_in_c0_goes_both_ways(solved):
 
 
 def _up_down_asymmetry(result):
-    """(largest r of phi_h = 0 above the middle of its height) - (that below), over R."""
     from pfmembrane.analysis import limit
     from pfmembrane.io.checkpoint import Checkpoint
     ck = Checkpoint(nodes=result.nodes, phi=result.phi, attrs=dict(result.attrs)).unfolded()
-    points = np.vstack(limit.level_set(ck))
-    middle = 0.5 * (points[:, 1].max() + points[:, 1].min())
-    return (points[points[:, 1] > middle, 0].max()
-            - points[points[:, 1] < middle, 0].max()) / result.scene.radius
+    return limit.up_down_asymmetry(limit.level_set(ck), result.scene.radius)
 
 
 def test_the_prolate_bifurcates_to_pears_and_a_switch_follows_them():

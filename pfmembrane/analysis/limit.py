@@ -229,6 +229,16 @@ def topology(curve, box):
     return counts
 
 
+def up_down_asymmetry(curve, radius):
+    """(largest r of a level set above the middle of its height) - (that below), over
+    `radius`: 0 on an up-down symmetric shape, its sign telling a pear from its mirror
+    image. Not collective."""
+    points = np.vstack(curve)
+    middle = 0.5 * (points[:, 1].max() + points[:, 1].min())
+    return (points[points[:, 1] > middle, 0].max()
+            - points[points[:, 1] < middle, 0].max()) / radius
+
+
 def level_set_energy(ckpt, curve, field=None):
     """Canham-Helfrich energy of the membrane phi_h = 0, put on the
     constraints of the scene (`pfmembrane.analysis.sharp.shape_energy`).

@@ -232,34 +232,40 @@ def trace(family, c0, args, comm, say):
                 ends=ends, shapes=shapes, time=time.perf_counter() - t0)
 
 
-def bifurcation(start, args, say):
-    """(a point just past the first index change without a fold, its v) on `start`'s
-    branch followed down in v (and on, should it fold back), or (None, the least v it
-    reached) where there is none before V_MIN or the end of the continuation.
-    The change is bracketed again from the point before it with steps REFINE times
-    shorter, twice, so that the switch starts near the bifurcation. Each point is
-    reported through `say`; only the one returned gets the level-set checks."""
+def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_MIN,
+                through_folds=True):
+    """(a point just past the first index change without a fold, its `parameter`) on
+    `start`'s branch followed in `parameter` from steps `ds` (by default -args.ds, down in
+    v) and on, should it fold back (unless not `through_folds`), or (None, the farthest
+    value it reached) where there is none before `bound`, a fold or the end of the
+    continuation. The change is bracketed again
+    from the point before it with steps REFINE times shorter, twice, so that the switch
+    starts near the bifurcation. Each point is reported through `say`; only the one
+    returned gets the level-set checks."""
     import pfmembrane as pf
-    v = least = start.attrs['reduced_volume']
-    ds, before = args.ds, start
+    ds = -args.ds if ds is None else ds
+    sign = math.copysign(1.0, ds)
+    value = farthest = start.attrs[parameter]
+    before = start
     for level in range(3):
-        for res in pf.continuation(before, 'reduced_volume', -ds, args.steps,
-                                   ds_max=ds if level else None, options=args.solver,
+        for res in pf.continuation(before, parameter, ds, args.steps,
+                                   ds_max=abs(ds) if level else None, options=args.solver,
                                    checks=False):
-            v = res.attrs['reduced_volume']
-            least = min(least, v)
-            say(f"v {v:.4f} index {res.attrs['index_0']} (step {ds:g})")
+            value = res.attrs[parameter]
+            farthest = max(farthest * sign, value * sign) * sign
+            say(f"{parameter} {value:.4f} index {res.attrs['index_0']} (step {abs(ds):g})"
+                + (' fold' if res.attrs['fold'] else ''))
             if res.attrs['index_change']:
                 break
-            if v < V_MIN:
-                return None, least
+            if sign * (value - bound) > 0 or (res.attrs['fold'] and not through_folds):
+                return None, farthest
             before = res
         else:
-            return None, least
+            return None, farthest
         ds /= REFINE
     res.attrs.update(pf.api.phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
                                                res.phi, res.attrs))
-    return res, v
+    return res, value
 
 
 def paths(points):

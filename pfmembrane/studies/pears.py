@@ -1,0 +1,210 @@
+"""The pear bifurcation of the prolate as eps falls, against the sharp limit:
+
+    python -m pfmembrane.studies.pears [--np 2] [--v 0.8] [--out runs/pears] [--force]
+
+At each (eps, nodes) of ROWS: the full-box prolate at reduced volume v from its sharp shape
+at c0 = 2 C0 R = C_FROM, followed up in C0 (`pf.continuation`) to its first index change
+without a fold (`atlas.bifurcation`, bracketed twice with steps 4 times shorter), its
+first fold or C_TO, then along the critical mode (`switch`): the pears, for up to STEPS points, until
+their level set has no energy for OTHER_TOPOLOGY points (a bud off) or c0 leaves
+[C_LOW, C_TO]. The sharp pear bifurcation D_pe at the same v is the zero of the sharp
+prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
+`--sharp` tabulates that line over v (OUT/sharp.md). Writes OUT/pears_v<v>.md; each eps's
+route is kept in OUT/pears_v<v>_eps<eps>.json and reused unless --force.
+"""
+import argparse
+import json
+import math
+import os
+import sys
+import time
+import types
+
+import numpy as np
+
+from pfmembrane.studies import atlas, launch
+
+RADIUS = atlas.RADIUS
+# (eps, nodes, eps of the uniform grid whose solution the CVT adapts to, or None)
+ROWS = [(0.04, 6124, None), (0.03, 12000, None), (0.02, 25000, None), (0.01, 25000, 0.02)]
+ADAPT_F = 100.0  # density 1 + f |grad phi_h|; the prolate's shape changes little in c0
+C_FROM, C_TO, C_LOW = 2.5, 4.5, 1.5   # reduced c0 = 2 C0 R
+DS, STEPS = 0.1, 40                    # step in reduced c0; points on the pear branch
+OTHER_TOPOLOGY = atlas.OTHER_TOPOLOGY
+SHARP_V = (0.71, 0.72, 0.73, 0.74, 0.75, 0.8, 0.85, 0.9)
+
+
+def sharp_line(vs=SHARP_V):
+    """(v, reduced c0 of D_pe) of the sharp prolate, from a scan in c0 by 0.1 from 1.5 to
+    8 and `sharp.pear_bifurcation` on the first sign change; nan where there is none."""
+    from pfmembrane.analysis import sharp
+    line = []
+    for v in vs:
+        grid = np.arange(1.5, 8.0 + 1e-9, 0.1)
+        values = [sharp.pear_mode(v, c / (2 * RADIUS), RADIUS)[0] for c in grid]
+        change = next((i for i in range(1, len(grid)) if values[i - 1] > 0 >= values[i]), None)
+        line.append((v, math.nan if change is None else 2 * RADIUS * sharp.pear_bifurcation(
+            v, (grid[change - 1] / (2 * RADIUS), grid[change] / (2 * RADIUS)), RADIUS)))
+    return line
+
+
+def state(res):
+    """What a row keeps of a point; the asymmetry and level-set energy from phi_h = 0."""
+    from pfmembrane.analysis import limit
+    a = res.attrs
+    curve = limit.level_set(res.checkpoint().unfolded())
+    return dict(c0=2 * RADIUS * float(a['c0']), E=float(a['energy']),
+                level=float(a.get('level_set_energy', math.nan)), nu_A=float(a['nu_area']),
+                nu_V=float(a['nu_volume']), index=int(a.get('index_0', -1)),
+                fold=int(a.get('fold', 0)), topology=str(a.get('topology', 'none')),
+                asymmetry=limit.up_down_asymmetry(curve, RADIUS) if curve else math.nan,
+                its=int(a.get('stage2_iterations', -1)), converged=int(a['converged']))
+
+
+def route(eps, nodes, coarse, v, say):
+    """The prolate at v followed in C0 to its bifurcation, and the pears switched to from
+    there; on the uniform grid of `nodes`, or on that grid relocated by CVT to the
+    solution at eps `coarse` (at c0 = C_FROM). Collective."""
+    import pfmembrane as pf
+    from pfmembrane.scenes import paper_spacing
+    t0 = time.perf_counter()
+    box = atlas.box_of('pear', C_TO, eps)
+    scene = pf.Scene(reduced_volume=v, c0=C_FROM / (2 * RADIUS), radius=RADIUS, box=box,
+                     branch='prolate', symmetric=False)
+    grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box))
+    start = pf.solve(scene, grid, coarse or eps, options={'pf_start': 'sharp'})
+    if coarse:
+        grid = pf.adapt(start, ADAPT_F)
+        start = pf.solve(scene, grid, eps, start=start)
+    say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
+    args = types.SimpleNamespace(ds=DS / (2 * RADIUS), steps=STEPS, solver={})
+    folds = []
+
+    def note(text):
+        say(f"   prolate {text}")
+        if text.endswith(' fold'):
+            folds.append(text)
+
+    res, reached = atlas.bifurcation(start, args, note, parameter='c0', ds=args.ds,
+                                     bound=C_TO / (2 * RADIUS), through_folds=False)
+    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v,
+               reached=2 * RADIUS * reached,
+               bifurcation=math.nan, eigenvalue=math.nan, pears=[])
+    out['prolate_end'] = 'fold' if folds else ('C_TO' if reached >= C_TO / (2 * RADIUS)
+                                               else 'corrector')
+    if res is None:
+        say(f"-- eps {eps:g}: no index change without a fold up to c0 {out['reached']:.4f}"
+            " (a fold or C_TO)")
+        return dict(out, wall=time.perf_counter() - t0)
+    out['bifurcation'] = 2 * RADIUS * reached
+    say(f"-- eps {eps:g}: the prolate bifurcates near c0 {out['bifurcation']:.4f}")
+    for p in pf.continuation(res, 'c0', args.ds, STEPS, switch=True):
+        out['eigenvalue'] = float(res.attrs['critical_eigenvalue'])  # set by the switch
+        s = state(p)
+        out['pears'].append(s)
+        say(f"   pear c0 {s['c0']:.4f} E {s['E']:.6f} level {s['level']:.6f} index "
+            f"{s['index']} {s['topology']} asymmetry {s['asymmetry']:+.4f} its {s['its']}")
+        if not C_LOW <= s['c0'] <= C_TO or (
+                len(out['pears']) >= OTHER_TOPOLOGY and all(
+                    q['topology'] not in atlas.ENERGETIC for q in out['pears'][-OTHER_TOPOLOGY:])):
+            break
+    return dict(out, wall=time.perf_counter() - t0)
+
+
+def events(points):
+    out, before = [], None
+    for p in points:
+        e = ['fold'] if p['fold'] else []
+        if before is not None and before['index'] != p['index'] and not p['fold']:
+            e.append('index change')
+        if before is not None and before['topology'] != p['topology']:
+            e.append(f"topology {before['topology']} -> {p['topology']}")
+        out.append(', '.join(e))
+        before = p
+    return out
+
+
+def report(rows, v, line):
+    d_pe = dict(line).get(v, math.nan)
+    lines = [f"# The pear bifurcation of the prolate at v = {v:g}, in c0 = 2 C0 R", '',
+             f"{rows[0]['ranks']} MPI ranks, {os.cpu_count()} cores. Regenerate: "
+             f"`python -m pfmembrane.studies.pears --v {v:g}` (`pfmembrane/studies/pears.py`).",
+             '', f"Sharp D_pe at v = {v:g}: c0 = {d_pe:.5f} (`sharp.pear_bifurcation`).", '',
+             '| eps | nodes | box | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
+             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 11]
+    for r in rows:
+        folds = [p['c0'] for p in r['pears'] if p['fold']]
+        lines.append(
+            f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | "
+            f"{r['box'][0]:g} x {r['box'][1]:g} | "
+            f"{r['reached']:.4f} | {r.get('prolate_end', '')} | {r['bifurcation']:.4f} | "
+            f"{r['bifurcation'] - d_pe:+.4f} | {r['eigenvalue']:.2e} | {len(r['pears'])} | "
+            f"{', '.join(f'{c:.4f}' for c in folds) or '-'} | {r['wall']:.1f} |")
+    for r in rows:
+        if not r['pears']:
+            continue
+        lines += ['', f"## Pears at eps {r['eps']:g} ({r['nodes']} nodes)", '',
+                  '| c0 | E | E level set | nu_A | nu_V | index | topology | asymmetry | '
+                  'events | converged | its |', '|' + '---|' * 11]
+        for p, e in zip(r['pears'], events(r['pears'])):
+            lines.append(f"| {p['c0']:.4f} | {p['E']:.6f} | {p['level']:.6f} | "
+                         f"{p['nu_A']:.4f} | {p['nu_V']:.3f} | {p['index']} | {p['topology']} "
+                         f"| {p['asymmetry']:+.4f} | {e} | {p['converged']} | {p['its']} |")
+    return lines
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--np', type=int, default=2)
+    ap.add_argument('--v', type=float, default=0.8)
+    ap.add_argument('--eps', type=float, nargs='+', help='rows of ROWS to run (all)')
+    ap.add_argument('--out', default='runs/pears')
+    ap.add_argument('--force', action='store_true')
+    ap.add_argument('--sharp', action='store_true', help='the sharp D_pe line only')
+    args = ap.parse_args(argv)
+    os.makedirs(args.out, exist_ok=True)
+    if args.sharp:
+        t0 = time.perf_counter()
+        line = sharp_line()
+        text = ['# The sharp pear bifurcation D_pe of the prolate', '',
+                'Regenerate: `python -m pfmembrane.studies.pears --sharp` '
+                f"({time.perf_counter() - t0:.1f} s, one process).", '',
+                '| v | c0 = 2 C0 R of D_pe |', '|---|---|'] + \
+            [f"| {v:g} | {c:.5f} |" for v, c in line]
+        with open(os.path.join(args.out, 'sharp.md'), 'w') as f:
+            f.write('\n'.join(text) + '\n')
+        print('\n'.join(text))
+        return
+    launch.ensure_ranks(args.np, 'pfmembrane.studies.pears', sys.argv[1:])
+    import pfmembrane as pf
+    from mpi4py import MPI
+    pf.api.petsc(sys.argv[:1])
+    root = MPI.COMM_WORLD.Get_rank() == 0
+
+    def say(text):
+        if root:
+            print(text, flush=True)
+
+    rows = []
+    for eps, nodes, coarse in ROWS:
+        if args.eps and not any(math.isclose(eps, e) for e in args.eps):
+            continue
+        path = os.path.join(args.out, f"pears_v{args.v:g}_eps{eps:g}.json")
+        if os.path.exists(path) and not args.force:
+            with open(path) as f:
+                rows.append(json.load(f))
+            continue
+        row = dict(route(eps, nodes, coarse, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
+        if root:
+            with open(path, 'w') as f:
+                json.dump(row, f, indent=1)
+        rows.append(row)
+    if root:
+        text = report(rows, args.v, sharp_line([args.v]))
+        with open(os.path.join(args.out, f"pears_v{args.v:g}.md"), 'w') as f:
+            f.write('\n'.join(text) + '\n')
+        print('\n'.join(text))
+
+
+if __name__ == '__main__':
+    main()
