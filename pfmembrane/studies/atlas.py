@@ -69,6 +69,7 @@ SPHERE = '1 sphere'
 ENERGETIC = (SPHERE, '1 torus')   # the topologies with a level-set energy
 OTHER_TOPOLOGY = 3  # a continuation ends after this many points of another topology
 REFINE = 4          # step ratio of each bracketing of a bifurcation
+ASYMMETRY = 5e-3    # up-down asymmetry (over R) past which a full-box shape is a pear
 
 
 def box_of(family, c0, eps):
@@ -184,27 +185,33 @@ def trace(family, c0, args, comm, say):
     except (RuntimeError, UsageError) as e:
         say(f"-- {family} c0 {c0:g}: no start ({e})")
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
-    switch = family in SWITCHED
+    switch, jumped = family in SWITCHED, False
     if switch and start.converged:
-        start, where = bifurcation(start, args, lambda text: say(f"   {family} c0 {c0:g}: "
-                                                                 f"{branch} {text}"))
+        start, where, jumped = bifurcation(
+            start, args, lambda text: say(f"   {family} c0 {c0:g}: {branch} {text}"),
+            left=asymmetric)
         if start is None:
             return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min,
                         ends=[f"no index change without a fold on the full-box {branch} "
                               f"down to v {where:.4f}"], time=time.perf_counter() - t0)
-        say(f"-- {family} c0 {c0:g}: the {branch} branch bifurcates near v {where:.4f}")
+        say(f"-- {family} c0 {c0:g}: the {branch} branch bifurcates near v {where:.4f}"
+            + (f", where its corrector left it for the {family}s" if jumped else ''))
     points = [dict(point(start, time.perf_counter() - t1), arclength=0.0, direction=0)]
     shapes = [(start.nodes, start.phi, dict(start.attrs))]
-    ends = []
+    ends = [f"started where the {branch}'s corrector left it at v {where:.4f}"] if jumped else []
+    switched = switch and not jumped
     if not start.converged:
         ends.append(f"the start at v {first:g} did not converge ({start.message})")
-    # a switched branch's two sides are mirror images: one is followed
-    directions = [1] if switch else [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX))
-                                     if go]
+    # a switched branch's two sides are mirror images: one is followed; a branch the
+    # corrector landed on, onward from there
+    if switch:
+        directions = [1] if switched else [int(math.copysign(1, start.attrs['dp_ds']))]
+    else:
+        directions = [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX)) if go]
     for direction in directions if start.converged else []:
         last, stretch = time.perf_counter(), []
         for res in pf.continuation(start, 'reduced_volume', direction * args.ds, args.steps,
-                                   options=args.solver, switch=switch):
+                                   options=args.solver, switch=switched):
             now = time.perf_counter()
             p = dict(point(res, now - last), arclength=res.attrs['arclength'],
                      direction=direction)
@@ -233,15 +240,17 @@ def trace(family, c0, args, comm, say):
 
 
 def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_MIN,
-                through_folds=True):
-    """(a point just past the first index change without a fold, its `parameter`) on
-    `start`'s branch followed in `parameter` from steps `ds` (by default -args.ds, down in
-    v) and on, should it fold back (unless not `through_folds`), or (None, the farthest
-    value it reached) where there is none before `bound`, a fold or the end of the
-    continuation. The change is bracketed again
-    from the point before it with steps REFINE times shorter, twice, so that the switch
-    starts near the bifurcation. Each point is reported through `say`; only the one
-    returned gets the level-set checks."""
+                through_folds=True, left=None, scale=1.0):
+    """(a point just past the first index change without a fold, its `parameter`, whether
+    it left the branch) on `start`'s branch followed in `parameter` from steps `ds` (by
+    default -args.ds, down in v) and on, should it fold back (unless not `through_folds`);
+    or (None, the farthest value it reached, False) where there is none before `bound`, a
+    fold or the end of the continuation. A point on which `left` holds (it lost the
+    branch's symmetry) counts as a change too: near a pitchfork the corrector can land on
+    the crossing branch, and where that one turns back the step reads as a fold. The
+    change is bracketed again from the point before it with steps REFINE times shorter,
+    twice, so that the switch starts near the bifurcation. Each point is reported through
+    `say`, its parameter times `scale`; only the one returned gets the level-set checks."""
     import pfmembrane as pf
     ds = -args.ds if ds is None else ds
     sign = math.copysign(1.0, ds)
@@ -253,19 +262,29 @@ def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_M
                                    checks=False):
             value = res.attrs[parameter]
             farthest = max(farthest * sign, value * sign) * sign
-            say(f"{parameter} {value:.4f} index {res.attrs['index_0']} (step {abs(ds):g})"
-                + (' fold' if res.attrs['fold'] else ''))
-            if res.attrs['index_change']:
+            jumped = bool(left and left(res))
+            say(f"{parameter} {scale * value:.4f} index {res.attrs['index_0']} "
+                f"(step {scale * abs(ds):g})" + (' fold' if res.attrs['fold'] else '')
+                + (' off the branch' if jumped else ''))
+            if res.attrs['index_change'] or jumped:
                 break
             if sign * (value - bound) > 0 or (res.attrs['fold'] and not through_folds):
-                return None, farthest
+                return None, farthest, False
             before = res
         else:
-            return None, farthest
+            return None, farthest, False
         ds /= REFINE
     res.attrs.update(pf.api.phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
                                                res.phi, res.attrs))
-    return res, value
+    return res, value, jumped
+
+
+def asymmetric(res):
+    """Whether the level set phi_h = 0 of a full-box result is up-down asymmetric by more
+    than ASYMMETRY (`limit.up_down_asymmetry`): a pear, not a prolate. Collective."""
+    from pfmembrane.analysis import limit
+    curve = limit.level_set(res.checkpoint().unfolded())
+    return bool(curve) and abs(limit.up_down_asymmetry(curve, res.scene.radius)) > ASYMMETRY
 
 
 def paths(points):

@@ -5,7 +5,10 @@
 At each (eps, nodes) of ROWS: the full-box prolate at reduced volume v from its sharp shape
 at c0 = 2 C0 R = C_FROM, followed up in C0 (`pf.continuation`) to its first index change
 without a fold (`atlas.bifurcation`, bracketed twice with steps 4 times shorter), its
-first fold or C_TO, then along the critical mode (`switch`): the pears, for up to STEPS points, until
+first fold or C_TO, then along the critical mode (`switch`): the pears, for up to STEPS
+points. Where the corrector itself lands on a pear near the pitchfork (its level set
+up-down asymmetric, `atlas.asymmetric`; the subcritical pears turn back in c0, so the step
+reads as a fold) the pears are followed on from that point. Either way until
 their level set has no energy for OTHER_TOPOLOGY points (a bud off) or c0 leaves
 [C_LOW, C_TO]. The sharp pear bifurcation D_pe at the same v is the zero of the sharp
 prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
@@ -13,6 +16,7 @@ prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`
 route is kept in OUT/pears_v<v>_eps<eps>.json and reused unless --force.
 """
 import argparse
+import itertools
 import json
 import math
 import os
@@ -85,11 +89,12 @@ def route(eps, nodes, coarse, v, say):
         if text.endswith(' fold'):
             folds.append(text)
 
-    res, reached = atlas.bifurcation(start, args, note, parameter='c0', ds=args.ds,
-                                     bound=C_TO / (2 * RADIUS), through_folds=False)
+    res, reached, jumped = atlas.bifurcation(
+        start, args, note, parameter='c0', ds=args.ds, bound=C_TO / (2 * RADIUS),
+        through_folds=False, left=atlas.asymmetric, scale=2 * RADIUS)
     out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v,
-               reached=2 * RADIUS * reached,
-               bifurcation=math.nan, eigenvalue=math.nan, pears=[])
+               reached=2 * RADIUS * reached, bifurcation=math.nan, eigenvalue=math.nan,
+               jumped=int(jumped), pears=[])
     out['prolate_end'] = 'fold' if folds else ('C_TO' if reached >= C_TO / (2 * RADIUS)
                                                else 'corrector')
     if res is None:
@@ -97,9 +102,15 @@ def route(eps, nodes, coarse, v, say):
             " (a fold or C_TO)")
         return dict(out, wall=time.perf_counter() - t0)
     out['bifurcation'] = 2 * RADIUS * reached
-    say(f"-- eps {eps:g}: the prolate bifurcates near c0 {out['bifurcation']:.4f}")
-    for p in pf.continuation(res, 'c0', args.ds, STEPS, switch=True):
-        out['eigenvalue'] = float(res.attrs['critical_eigenvalue'])  # set by the switch
+    say(f"-- eps {eps:g}: the prolate bifurcates near c0 {out['bifurcation']:.4f}"
+        + (", where its corrector left it for a pear: followed on from there" if jumped else ''))
+    if jumped:  # on the pears already, going the way the corrector went
+        pears = itertools.chain([res], pf.continuation(
+            res, 'c0', math.copysign(args.ds, res.attrs['dp_ds']), STEPS - 1))
+    else:
+        pears = pf.continuation(res, 'c0', args.ds, STEPS, switch=True)
+    for p in pears:
+        out['eigenvalue'] = float(res.attrs.get('critical_eigenvalue', math.nan))
         s = state(p)
         out['pears'].append(s)
         say(f"   pear c0 {s['c0']:.4f} E {s['E']:.6f} level {s['level']:.6f} index "
@@ -137,7 +148,8 @@ def report(rows, v, line):
         lines.append(
             f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | "
             f"{r['box'][0]:g} x {r['box'][1]:g} | "
-            f"{r['reached']:.4f} | {r.get('prolate_end', '')} | {r['bifurcation']:.4f} | "
+            f"{r['reached']:.4f} | {'on a pear' if r.get('jumped') else r.get('prolate_end', '')} | "
+            f"{r['bifurcation']:.4f} | "
             f"{r['bifurcation'] - d_pe:+.4f} | {r['eigenvalue']:.2e} | {len(r['pears'])} | "
             f"{', '.join(f'{c:.4f}' for c in folds) or '-'} | {r['wall']:.1f} |")
     for r in rows:
