@@ -237,6 +237,16 @@ class Result:
     def checkpoint(self):
         return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
 
+    def unfolded(self):
+        """This state on the full box: a half-box result with its mirror image, on its
+        nodes and their images (a start for a full-box solve on those nodes, where the
+        up-down symmetry is free to break: an up-down symmetric grid keeps a pitchfork a
+        pitchfork); a full-box one unchanged."""
+        if not self.attrs.get('symmetric', 0):
+            return self
+        ck = self.checkpoint().unfolded()
+        return Result(ck.nodes, ck.phi, ck.attrs, message=self.message, status=self.status)
+
     def save(self, path):
         """Write the checkpoint and its `.xdmf` beside it, atomically.
 

@@ -149,3 +149,23 @@ def test_a_solve_imports_no_matplotlib(tmp_path):
                          cwd=ROOT, env=launch.environment())
     assert out.returncode == 0, out.stderr
     assert out.stdout.split()[-1] == 'False'
+
+
+def test_a_half_box_result_unfolds_into_a_full_box_start_on_a_symmetric_grid(comm):
+    half = pf.Scene(reduced_volume=0.8, branch='prolate', box=(0.5, 2.0), symmetric=True)
+    res = pf.solve(half, pf.Grid.uniform(half, nodes=NODES, comm=comm), eps=EPS)
+    full = res.unfolded()
+    assert not full.attrs['symmetric'] and res.unfolded() is not res
+    assert full.unfolded() is full
+    mirrored = full.nodes * [1, -1] + [0, half.box[1]]
+    order = np.lexsort(full.nodes.T), np.lexsort(mirrored.T)
+    assert np.array_equal(full.nodes[order[0]], mirrored[order[1]])  # no node twice
+    scene = pf.Scene(reduced_volume=0.8, branch='prolate', box=half.box)
+    out = pf.solve(scene, pf.Grid(scene, full.nodes, **full.basis, comm=comm), EPS,
+                   start=full)
+    # with a row of nodes on the plane the half box's basis and cells are the full box's
+    # on the unfolded nodes: the start is the full-box solution already
+    assert out.converged and out.attrs['stage2_iterations'] <= 1
+    assert abs(out.energy - res.energy) < 1e-12 * res.energy
+    assert np.abs(out.phi - full.phi).max() < 1e-10
+    assert np.abs(out.phi[order[0]] - out.phi[order[1]]).max() < 1e-10

@@ -3,7 +3,7 @@
     python -m pfmembrane.studies.pears [--np 2] [--v 0.8] [--out runs/pears] [--force]
 
 At each (eps, nodes) of ROWS: the full-box prolate at reduced volume v from its sharp shape
-at c0 = 2 C0 R = C_FROM, followed up in C0 (`pf.continuation`) to its first index change
+at the row's c0 = 2 C0 R, followed up in C0 (`pf.continuation`) to its first index change
 without a fold (`atlas.bifurcation`, bracketed twice with steps 4 times shorter), its
 first fold or C_TO, then along the critical mode (`switch`): the pears, for up to STEPS
 points. Where the corrector itself lands on a pear near the pitchfork (its level set
@@ -12,10 +12,12 @@ reads as a fold) the pears are followed on from that point. Either way until
 their level set has no energy for OTHER_TOPOLOGY points (a bud off) or c0 leaves
 [C_LOW, C_TO]. The sharp pear bifurcation D_pe at the same v is the zero of the sharp
 prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
-`--sharp` tabulates that line over v (OUT/sharp.md). Writes OUT/pears_v<v>.md; each eps's
-route is kept in OUT/pears_v<v>_eps<eps>.json and reused unless --force.
+`--sharp` tabulates that line over v (OUT/sharp.md); the report fits D(eps) = D_0 + C eps^2
+to the uniform rows' bifurcations and compares D_0 with it. Writes OUT/pears_v<v>.md; each eps's
+route is kept in OUT/pears_v<v>_eps<eps>[_adapted].json and reused unless --force.
 """
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -29,10 +31,13 @@ import numpy as np
 from pfmembrane.studies import atlas, launch
 
 RADIUS = atlas.RADIUS
-# (eps, nodes, eps of the uniform grid whose solution the CVT adapts to, or None)
-ROWS = [(0.04, 6124, None), (0.03, 12000, None), (0.02, 25000, None), (0.01, 25000, 0.02)]
-ADAPT_F = 100.0  # density 1 + f |grad phi_h|; the prolate's shape changes little in c0
-C_FROM, C_TO, C_LOW = 2.5, 4.5, 1.5   # reduced c0 = 2 C0 R
+# (eps, nodes, eps of the uniform grid whose solution the CVT adapts to or None, start c0);
+# eps / h about 1.8 on the uniform grids; the later rows start nearer the bifurcation the
+# earlier ones predict
+ROWS = [(0.04, 6124, None, 2.5), (0.03, 12000, None, 2.5), (0.02, 25000, None, 2.5),
+        (0.015, 45000, None, 3.3), (0.02, 40000, 0.02, 3.3), (0.01, 40000, 0.02, 3.5)]
+ADAPT_F = 100.0  # density 1 + f |grad phi_h|
+C_TO, C_LOW = 4.5, 1.5   # reduced c0 = 2 C0 R
 DS, STEPS = 0.1, 40                    # step in reduced c0; points on the pear branch
 OTHER_TOPOLOGY = atlas.OTHER_TOPOLOGY
 SHARP_V = (0.71, 0.72, 0.73, 0.74, 0.75, 0.8, 0.85, 0.9)
@@ -65,21 +70,29 @@ def state(res):
                 its=int(a.get('stage2_iterations', -1)), converged=int(a['converged']))
 
 
-def route(eps, nodes, coarse, v, say):
-    """The prolate at v followed in C0 to its bifurcation, and the pears switched to from
-    there; on the uniform grid of `nodes`, or on that grid relocated by CVT to the
-    solution at eps `coarse` (at c0 = C_FROM). Collective."""
+def route(eps, nodes, coarse, c_from, v, say):
+    """The prolate at v followed in C0 from c_from to its bifurcation, and the pears
+    switched to from there; on the uniform grid of `nodes`, or on that grid relocated by
+    CVT to the solution at eps `coarse` (at c_from) on the half box and unfolded, so that
+    the grid keeps the up-down symmetry (the full-box CVT does not: its prolate is up-down
+    asymmetric, runs/pears/README.md). Collective."""
     import pfmembrane as pf
     from pfmembrane.scenes import paper_spacing
     t0 = time.perf_counter()
     box = atlas.box_of('pear', C_TO, eps)
-    scene = pf.Scene(reduced_volume=v, c0=C_FROM / (2 * RADIUS), radius=RADIUS, box=box,
+    scene = pf.Scene(reduced_volume=v, c0=c_from / (2 * RADIUS), radius=RADIUS, box=box,
                      branch='prolate', symmetric=False)
-    grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box))
-    start = pf.solve(scene, grid, coarse or eps, options={'pf_start': 'sharp'})
-    if coarse:
+    if coarse:  # adapted on the half box, unfolded: an up-down symmetric full-box grid
+        half = dataclasses.replace(scene, symmetric=True)
+        start = pf.solve(half, pf.Grid.uniform(half, nodes=paper_spacing(nodes, box)), coarse,
+                         options={'pf_start': 'sharp'})
         grid = pf.adapt(start, ADAPT_F)
-        start = pf.solve(scene, grid, eps, start=start)
+        start = pf.solve(half, grid, eps, start=start).unfolded()
+        grid = pf.Grid(scene, start.nodes, **start.basis)
+    else:
+        grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box))
+    start = pf.solve(scene, grid, eps, start=start if coarse else None,
+                     options=None if coarse else {'pf_start': 'sharp'})
     say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
     args = types.SimpleNamespace(ds=DS / (2 * RADIUS), steps=STEPS, solver={})
     folds = []
@@ -92,7 +105,7 @@ def route(eps, nodes, coarse, v, say):
     res, reached, jumped = atlas.bifurcation(
         start, args, note, parameter='c0', ds=args.ds, bound=C_TO / (2 * RADIUS),
         through_folds=False, left=atlas.asymmetric, scale=2 * RADIUS)
-    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v,
+    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v, start=c_from,
                reached=2 * RADIUS * reached, bifurcation=math.nan, eigenvalue=math.nan,
                jumped=int(jumped), pears=[])
     out['prolate_end'] = 'fold' if folds else ('C_TO' if reached >= C_TO / (2 * RADIUS)
@@ -135,23 +148,42 @@ def events(points):
     return out
 
 
+def extrapolate(rows):
+    """(D_0, C, largest residual) of the least-squares fit D(eps) = D_0 + C eps^2 to the
+    bifurcations of the uniform-grid rows, or None with fewer than two."""
+    pts = [(r['eps'], r['bifurcation']) for r in rows
+           if math.isfinite(r['bifurcation']) and not r['adapted']]
+    if len(pts) < 2:
+        return None
+    eps, d = np.array(pts).T
+    a = np.stack([np.ones_like(eps), eps ** 2], axis=1)
+    (d0, c), *_ = np.linalg.lstsq(a, d, rcond=None)
+    return d0, c, float(np.abs(a @ (d0, c) - d).max())
+
+
 def report(rows, v, line):
     d_pe = dict(line).get(v, math.nan)
     lines = [f"# The pear bifurcation of the prolate at v = {v:g}, in c0 = 2 C0 R", '',
              f"{rows[0]['ranks']} MPI ranks, {os.cpu_count()} cores. Regenerate: "
              f"`python -m pfmembrane.studies.pears --v {v:g}` (`pfmembrane/studies/pears.py`).",
              '', f"Sharp D_pe at v = {v:g}: c0 = {d_pe:.5f} (`sharp.pear_bifurcation`).", '',
-             '| eps | nodes | box | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
-             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 11]
+             '| eps | nodes | box | from c0 | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
+             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 12]
     for r in rows:
         folds = [p['c0'] for p in r['pears'] if p['fold']]
         lines.append(
             f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | "
-            f"{r['box'][0]:g} x {r['box'][1]:g} | "
+            f"{r['box'][0]:g} x {r['box'][1]:g} | {r['start']:g} | "
             f"{r['reached']:.4f} | {'on a pear' if r.get('jumped') else r.get('prolate_end', '')} | "
             f"{r['bifurcation']:.4f} | "
             f"{r['bifurcation'] - d_pe:+.4f} | {r['eigenvalue']:.2e} | {len(r['pears'])} | "
             f"{', '.join(f'{c:.4f}' for c in folds) or '-'} | {r['wall']:.1f} |")
+    fit = extrapolate(rows)
+    if fit:
+        d0, c, worst = fit
+        lines += ['', f"Fit of the uniform grids' bifurcations to D_0 + C eps^2 (`extrapolate`): D_0 = {d0:.4f} "
+                  f"({d0 - d_pe:+.4f}, {(d0 - d_pe) / d_pe:+.2%} against the sharp D_pe), "
+                  f"C = {c:.1f}, largest residual {worst:.4f}."]
     for r in rows:
         if not r['pears']:
             continue
@@ -169,7 +201,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--np', type=int, default=2)
     ap.add_argument('--v', type=float, default=0.8)
-    ap.add_argument('--eps', type=float, nargs='+', help='rows of ROWS to run (all)')
+    ap.add_argument('--eps', type=float, nargs='+',
+                    help='the rows of ROWS to run (all); the report has every row on record')
     ap.add_argument('--out', default='runs/pears')
     ap.add_argument('--force', action='store_true')
     ap.add_argument('--sharp', action='store_true', help='the sharp D_pe line only')
@@ -198,15 +231,17 @@ def main(argv=None):
             print(text, flush=True)
 
     rows = []
-    for eps, nodes, coarse in ROWS:
-        if args.eps and not any(math.isclose(eps, e) for e in args.eps):
-            continue
-        path = os.path.join(args.out, f"pears_v{args.v:g}_eps{eps:g}.json")
-        if os.path.exists(path) and not args.force:
+    for eps, nodes, coarse, c_from in ROWS:
+        path = os.path.join(args.out, f"pears_v{args.v:g}_eps{eps:g}"
+                            f"{'_adapted' if coarse else ''}.json")
+        chosen = not args.eps or any(math.isclose(eps, e) for e in args.eps)
+        if os.path.exists(path) and not (chosen and args.force):
             with open(path) as f:
                 rows.append(json.load(f))
             continue
-        row = dict(route(eps, nodes, coarse, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
+        if not chosen:
+            continue
+        row = dict(route(eps, nodes, coarse, c_from, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
         if root:
             with open(path, 'w') as f:
                 json.dump(row, f, indent=1)
