@@ -163,9 +163,10 @@ crossings: install
 # The atlas's branches keep in runs/atlas/branches: a second run redraws from them; FORCE=--force
 # follows them again. Below the oblate fold of eps 0.02 the diagram needs eps 0.01
 # (runs/atlas/notes.md): the oblate and stomatocyte families at c0 <= 0 in atlases of their
-# own, merged with the first into runs/atlas/merged.
+# own, and the pears (full box) in a third, merged with the first into runs/atlas/merged.
 phase-diagram: install
 	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups $(NP) --eps 0.02 --nodes 25000 --ds 0.05 --out runs/atlas $(FORCE)
 	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups 1 --eps 0.01 --nodes 84000 --ds 0.15 --steps 120 --families oblate --c0 -1 -0.5 0 --out runs/atlas/oblate $(FORCE)
 	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups $(NP) --eps 0.01 --nodes 84000 --ds 0.15 --steps 40 --families stomatocyte --c0 -1 -0.5 0 --out runs/atlas/stomatocyte $(FORCE)
-	$(PY) -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/oblate runs/atlas/stomatocyte --out runs/atlas/merged
+	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups 1 --eps 0.02 --nodes 25000 --ds 0.2 --steps 120 --families pear --c0 2.5 --out runs/atlas/pear_eps0.02 $(FORCE)
+	$(PY) -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/oblate runs/atlas/stomatocyte runs/atlas/pear_eps0.02 --out runs/atlas/merged

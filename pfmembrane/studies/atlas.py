@@ -208,6 +208,10 @@ def trace(family, c0, args, comm, say):
         directions = [1] if switched else [int(math.copysign(1, start.attrs['dp_ds']))]
     else:
         directions = [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX)) if go]
+
+    def way(direction, v):  # where the corrector landed, the tangent's sign is not v's
+        return 'down' if (v < points[0]['v'] if jumped else direction < 0) else 'up'
+
     for direction in directions if start.converged else []:
         last, stretch = time.perf_counter(), []
         for res in pf.continuation(start, 'reduced_volume', direction * args.ds, args.steps,
@@ -220,23 +224,23 @@ def trace(family, c0, args, comm, say):
             say(f"   {family} c0 {c0:g}: v {p['v']:.4f} E {p['E']:.6f} level {p['level']:.6f} "
                 f"index {p['index']} {p['topology']} its {p['its']} {p['wall']:.2f} s")
             if not V_MIN - 1e-9 <= p['v'] <= V_MAX + 1e-9:
-                ends.append(f"{'down' if direction < 0 else 'up'}: left the range at v "
-                            f"{p['v']:.4f}")
+                ends.append(f"{way(direction, p['v'])}: left the range at v {p['v']:.4f}")
                 break
             if all(q['topology'] not in ENERGETIC for q, _ in stretch[-OTHER_TOPOLOGY:]) \
                     and len(stretch) >= OTHER_TOPOLOGY:
-                ends.append(f"{'down' if direction < 0 else 'up'}: {p['topology']} at v "
-                            f"{p['v']:.4f}, {OTHER_TOPOLOGY} points without a level-set energy")
+                ends.append(f"{way(direction, p['v'])}: {p['topology']} at v {p['v']:.4f}, "
+                            f"{OTHER_TOPOLOGY} points without a level-set energy")
                 break
         else:
             v_end = stretch[-1][0]['v'] if stretch else points[0]['v']
-            ends.append(f"{'down' if direction < 0 else 'up'}: stopped at v {v_end:.4f} "
+            ends.append(f"{way(direction, v_end)}: stopped at v {v_end:.4f} "
                         f"({'after ' + str(args.steps) + ' points' if len(stretch) == args.steps else 'the corrector failed'})")
         points += [p for p, _ in stretch]
         shapes += [s for _, s in stretch]
     points[0]['index'] = int(start.attrs.get('index_0', -1))  # set by the first continuation
     return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min, points=points,
-                ends=ends, shapes=shapes, time=time.perf_counter() - t0)
+                ends=ends, shapes=shapes, time=time.perf_counter() - t0,
+                bifurcation_v=where if switch else math.nan)
 
 
 def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_MIN,
@@ -583,6 +587,10 @@ def plot(out):
                 facecolor=COLOURS.get(family, '0.7'), alpha=0.35 if name == family else 0.6))
         for v, a, b in transitions(best, vs):
             ax.plot(v, c0, 'k|', markersize=12)
+    for b in branches:  # where a switched family left the branch it bifurcates from
+        if math.isfinite(b.get('bifurcation_v', math.nan)):
+            ax.plot(b['bifurcation_v'], b['c0'], '*', color=COLOURS.get(b['family'], 'k'),
+                    markersize=11, markeredgecolor='k')
     ax.set_xlim(V_MIN - DV, V_MAX + DV)
     ax.set_ylim(curvatures[0] - step / 2, curvatures[-1] + step / 2)
     # silhouettes at one scale in both directions: R spans 0.15 of a row
@@ -601,7 +609,9 @@ def plot(out):
     ax.set_ylabel('reduced spontaneous curvature c0 = 2 C0 R')
     eps = sorted({b.get('eps', data['args']['eps']) for b in branches}, reverse=True)
     ax.set_title(f"least level-set energy (phase fields, eps {', '.join(f'{e:g}' for e in eps)}"
-                 + (', per branch in diagram.md' if len(eps) > 1 else '') + '); | transitions')
+                 + (', per branch in diagram.md' if len(eps) > 1 else '') + '); | transitions'
+                 + ('; * bifurcations' if any(math.isfinite(b.get('bifurcation_v', math.nan))
+                                              for b in branches) else ''))
     fig.savefig(os.path.join(out, 'diagram.png'), dpi=130, bbox_inches='tight')
     plt.close(fig)
 
