@@ -14,7 +14,7 @@ their level set has no energy for OTHER_TOPOLOGY points (a bud off) or c0 leaves
 prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
 `--sharp` tabulates that line over v (OUT/sharp.md); the report fits D(eps) = D_0 + C eps^2
 to the uniform rows' bifurcations and compares D_0 with it. Writes OUT/pears_v<v>.md; each eps's
-route is kept in OUT/pears_v<v>_eps<eps>[_adapted].json and reused unless --force.
+route is kept in OUT/pears_v<v>_eps<eps>[_adapted][_gamma<gamma>].json and reused unless --force.
 """
 import argparse
 import dataclasses
@@ -31,11 +31,14 @@ import numpy as np
 from pfmembrane.studies import atlas, launch
 
 RADIUS = atlas.RADIUS
-# (eps, nodes, eps of the uniform grid whose solution the CVT adapts to or None, start c0);
-# eps / h about 1.8 on the uniform grids; the later rows start nearer the bifurcation the
-# earlier ones predict
-ROWS = [(0.04, 6124, None, 2.5), (0.03, 12000, None, 2.5), (0.02, 25000, None, 2.5),
-        (0.015, 45000, None, 3.3), (0.02, 40000, 0.02, 3.3), (0.01, 40000, 0.02, 3.5)]
+# (eps, nodes, eps of the uniform grid whose solution the CVT adapts to or None, start c0,
+# max-ent gamma); eps / h about 1.8 on the uniform grids; the later rows start nearer the
+# bifurcation the earlier ones predict. With gamma 0.8 the adapted grids hold the pear mode
+# off (runs/pears/README.md), as the paper's sequences lower gamma on adapted grids.
+ROWS = [(0.04, 6124, None, 2.5, 0.8), (0.03, 12000, None, 2.5, 0.8),
+        (0.02, 25000, None, 2.5, 0.8), (0.015, 45000, None, 3.3, 0.8),
+        (0.02, 40000, 0.02, 3.3, 0.8), (0.01, 40000, 0.02, 3.5, 0.8),
+        (0.01, 40000, 0.02, 3.5, 0.4)]
 ADAPT_F = 100.0  # density 1 + f |grad phi_h|
 C_TO, C_LOW = 4.5, 1.5   # reduced c0 = 2 C0 R
 DS, STEPS = 0.1, 40                    # step in reduced c0; points on the pear branch
@@ -70,7 +73,7 @@ def state(res):
                 its=int(a.get('stage2_iterations', -1)), converged=int(a['converged']))
 
 
-def route(eps, nodes, coarse, c_from, v, say):
+def route(eps, nodes, coarse, c_from, gamma, v, say):
     """The prolate at v followed in C0 from c_from to its bifurcation, and the pears
     switched to from there; on the uniform grid of `nodes`, or on that grid relocated by
     CVT to the solution at eps `coarse` (at c_from) on the half box and unfolded, so that
@@ -84,13 +87,14 @@ def route(eps, nodes, coarse, c_from, v, say):
                      branch='prolate', symmetric=False)
     if coarse:  # adapted on the half box, unfolded: an up-down symmetric full-box grid
         half = dataclasses.replace(scene, symmetric=True)
-        start = pf.solve(half, pf.Grid.uniform(half, nodes=paper_spacing(nodes, box)), coarse,
+        start = pf.solve(half, pf.Grid.uniform(half, nodes=paper_spacing(nodes, box),
+                                               gamma=gamma), coarse,
                          options={'pf_start': 'sharp'})
-        grid = pf.adapt(start, ADAPT_F)
+        grid = pf.adapt(start, ADAPT_F, gamma=gamma)
         start = pf.solve(half, grid, eps, start=start).unfolded()
         grid = pf.Grid(scene, start.nodes, **start.basis)
     else:
-        grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box))
+        grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box), gamma=gamma)
     start = pf.solve(scene, grid, eps, start=start if coarse else None,
                      options=None if coarse else {'pf_start': 'sharp'})
     say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
@@ -105,7 +109,7 @@ def route(eps, nodes, coarse, c_from, v, say):
     res, reached, jumped = atlas.bifurcation(
         start, args, note, parameter='c0', ds=args.ds, bound=C_TO / (2 * RADIUS),
         through_folds=False, left=atlas.asymmetric, scale=2 * RADIUS)
-    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v, start=c_from,
+    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v, start=c_from, gamma=gamma,
                reached=2 * RADIUS * reached, bifurcation=math.nan, eigenvalue=math.nan,
                jumped=int(jumped), pears=[])
     out['prolate_end'] = 'fold' if folds else ('C_TO' if reached >= C_TO / (2 * RADIUS)
@@ -167,12 +171,12 @@ def report(rows, v, line):
              f"{rows[0]['ranks']} MPI ranks, {os.cpu_count()} cores. Regenerate: "
              f"`python -m pfmembrane.studies.pears --v {v:g}` (`pfmembrane/studies/pears.py`).",
              '', f"Sharp D_pe at v = {v:g}: c0 = {d_pe:.5f} (`sharp.pear_bifurcation`).", '',
-             '| eps | nodes | box | from c0 | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
-             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 12]
+             '| eps | nodes | gamma | box | from c0 | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
+             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 13]
     for r in rows:
         folds = [p['c0'] for p in r['pears'] if p['fold']]
         lines.append(
-            f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | "
+            f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | {r['gamma']:g} | "
             f"{r['box'][0]:g} x {r['box'][1]:g} | {r['start']:g} | "
             f"{r['reached']:.4f} | {'on a pear' if r.get('jumped') else r.get('prolate_end', '')} | "
             f"{r['bifurcation']:.4f} | "
@@ -231,9 +235,10 @@ def main(argv=None):
             print(text, flush=True)
 
     rows = []
-    for eps, nodes, coarse, c_from in ROWS:
+    for eps, nodes, coarse, c_from, gamma in ROWS:
         path = os.path.join(args.out, f"pears_v{args.v:g}_eps{eps:g}"
-                            f"{'_adapted' if coarse else ''}.json")
+                            f"{'_adapted' if coarse else ''}"
+                            f"{'' if gamma == 0.8 else f'_gamma{gamma:g}'}.json")
         chosen = not args.eps or any(math.isclose(eps, e) for e in args.eps)
         if os.path.exists(path) and not (chosen and args.force):
             with open(path) as f:
@@ -241,7 +246,7 @@ def main(argv=None):
             continue
         if not chosen:
             continue
-        row = dict(route(eps, nodes, coarse, c_from, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
+        row = dict(route(eps, nodes, coarse, c_from, gamma, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
         if root:
             with open(path, 'w') as f:
                 json.dump(row, f, indent=1)
