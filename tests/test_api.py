@@ -160,9 +160,7 @@ def test_a_half_box_result_unfolds_into_a_full_box_start_on_a_symmetric_grid(com
     mirrored = full.nodes * [1, -1] + [0, half.box[1]]
     order = np.lexsort(full.nodes.T), np.lexsort(mirrored.T)
     assert np.array_equal(full.nodes[order[0]], mirrored[order[1]])  # no node twice
-    scene = pf.Scene(reduced_volume=0.8, branch='prolate', box=half.box)
-    out = pf.solve(scene, pf.Grid(scene, full.nodes, **full.basis, comm=comm), EPS,
-                   start=full)
+    out = pf.solve(full.scene, pf.Grid.of(full, comm=comm), EPS, start=full)
     # with a row of nodes on the plane the half box's basis and cells are the full box's
     # on the unfolded nodes: the start is the full-box solution already
     assert out.converged and out.attrs['stage2_iterations'] <= 1

@@ -28,6 +28,7 @@ import types
 
 import numpy as np
 
+from pfmembrane.io.options import Params
 from pfmembrane.studies import atlas, launch
 
 RADIUS = atlas.RADIUS
@@ -35,9 +36,10 @@ RADIUS = atlas.RADIUS
 # max-ent gamma); eps / h about 1.8 on the uniform grids; the later rows start nearer the
 # bifurcation the earlier ones predict. With gamma 0.8 the adapted grids hold the pear mode
 # off (runs/pears/README.md), as the paper's sequences lower gamma on adapted grids.
-ROWS = [(0.04, 6124, None, 2.5, 0.8), (0.03, 12000, None, 2.5, 0.8),
-        (0.02, 25000, None, 2.5, 0.8), (0.015, 45000, None, 3.3, 0.8),
-        (0.02, 40000, 0.02, 3.3, 0.8), (0.01, 40000, 0.02, 3.5, 0.8),
+G = Params.gamma
+ROWS = [(0.04, 6124, None, 2.5, G), (0.03, 12000, None, 2.5, G),
+        (0.02, 25000, None, 2.5, G), (0.015, 45000, None, 3.3, G),
+        (0.02, 40000, 0.02, 3.3, G), (0.01, 40000, 0.02, 3.5, G),
         (0.01, 40000, 0.02, 3.5, 0.4)]
 ADAPT_F = 100.0  # density 1 + f |grad phi_h|
 C_TO, C_LOW = 4.5, 1.5   # reduced c0 = 2 C0 R
@@ -90,13 +92,14 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         start = pf.solve(half, pf.Grid.uniform(half, nodes=paper_spacing(nodes, box),
                                                gamma=gamma), coarse,
                          options={'pf_start': 'sharp'})
-        grid = pf.adapt(start, ADAPT_F, gamma=gamma)
-        start = pf.solve(half, grid, eps, start=start).unfolded()
-        grid = pf.Grid(scene, start.nodes, **start.basis)
+        unfolded = pf.solve(half, pf.adapt(start, ADAPT_F, gamma=gamma), eps,
+                            start=start).unfolded()
+        grid = pf.Grid.of(unfolded)
+        # a converged state on these nodes, but for the cells at the plane: Newton alone
+        start = pf.solve(scene, grid, eps, start=unfolded, options={'pf_stage1': 'none'})
     else:
         grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box), gamma=gamma)
-    start = pf.solve(scene, grid, eps, start=start if coarse else None,
-                     options=None if coarse else {'pf_start': 'sharp'})
+        start = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'})
     say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
     args = types.SimpleNamespace(ds=DS / (2 * RADIUS), steps=STEPS, solver={})
     folds = []
@@ -109,7 +112,8 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
     res, reached, jumped = atlas.bifurcation(
         start, args, note, parameter='c0', ds=args.ds, bound=C_TO / (2 * RADIUS),
         through_folds=False, left=atlas.asymmetric, scale=2 * RADIUS)
-    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v, start=c_from, gamma=gamma,
+    out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v,
+               start=c_from, gamma=gamma,
                reached=2 * RADIUS * reached, bifurcation=math.nan, eigenvalue=math.nan,
                jumped=int(jumped), pears=[])
     out['prolate_end'] = 'fold' if folds else ('C_TO' if reached >= C_TO / (2 * RADIUS)
@@ -171,12 +175,14 @@ def report(rows, v, line):
              f"{rows[0]['ranks']} MPI ranks, {os.cpu_count()} cores. Regenerate: "
              f"`python -m pfmembrane.studies.pears --v {v:g}` (`pfmembrane/studies/pears.py`).",
              '', f"Sharp D_pe at v = {v:g}: c0 = {d_pe:.5f} (`sharp.pear_bifurcation`).", '',
-             '| eps | nodes | gamma | box | from c0 | prolate to c0 | ends | bifurcation c0 | vs sharp | critical '
-             'eigenvalue | pear points | pear fold c0 | wall s |', '|' + '---|' * 13]
+             '| eps | nodes | gamma | box | from c0 | prolate to c0 | ends | bifurcation c0 | '
+             'vs sharp | critical eigenvalue | pear points | pear fold c0 | wall s |',
+             '|' + '---|' * 13]
     for r in rows:
         folds = [p['c0'] for p in r['pears'] if p['fold']]
         lines.append(
-            f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | {r['gamma']:g} | "
+            f"| {r['eps']:g} | {r['nodes']}{' adapted' if r['adapted'] else ''} | "
+            f"{r['gamma']:g} | "
             f"{r['box'][0]:g} x {r['box'][1]:g} | {r['start']:g} | "
             f"{r['reached']:.4f} | {'on a pear' if r.get('jumped') else r.get('prolate_end', '')} | "
             f"{r['bifurcation']:.4f} | "
@@ -185,8 +191,9 @@ def report(rows, v, line):
     fit = extrapolate(rows)
     if fit:
         d0, c, worst = fit
-        lines += ['', f"Fit of the uniform grids' bifurcations to D_0 + C eps^2 (`extrapolate`): D_0 = {d0:.4f} "
-                  f"({d0 - d_pe:+.4f}, {(d0 - d_pe) / d_pe:+.2%} against the sharp D_pe), "
+        lines += ['', "Fit of the uniform grids' bifurcations to D_0 + C eps^2 (`extrapolate`): "
+                  f"D_0 = {d0:.4f} ({d0 - d_pe:+.4f}, {(d0 - d_pe) / d_pe:+.2%} against the "
+                  "sharp D_pe), "
                   f"C = {c:.1f}, largest residual {worst:.4f}."]
     for r in rows:
         if not r['pears']:
@@ -238,7 +245,7 @@ def main(argv=None):
     for eps, nodes, coarse, c_from, gamma in ROWS:
         path = os.path.join(args.out, f"pears_v{args.v:g}_eps{eps:g}"
                             f"{'_adapted' if coarse else ''}"
-                            f"{'' if gamma == 0.8 else f'_gamma{gamma:g}'}.json")
+                            f"{'' if gamma == G else f'_gamma{gamma:g}'}.json")
         chosen = not args.eps or any(math.isclose(eps, e) for e in args.eps)
         if os.path.exists(path) and not (chosen and args.force):
             with open(path) as f:
@@ -246,7 +253,8 @@ def main(argv=None):
             continue
         if not chosen:
             continue
-        row = dict(route(eps, nodes, coarse, c_from, gamma, args.v, say), ranks=MPI.COMM_WORLD.Get_size())
+        row = dict(route(eps, nodes, coarse, c_from, gamma, args.v, say),
+                   ranks=MPI.COMM_WORLD.Get_size())
         if root:
             with open(path, 'w') as f:
                 json.dump(row, f, indent=1)
