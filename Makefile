@@ -37,7 +37,7 @@ help:
 	@echo "make branches  oblate and prolate branches, v = 0.95 -> 0.65 (Figure 6), runs/branches/"
 	@echo "make figures  the README's figures from existing checkpoints, runs/figures/index.md"
 	@echo "make extremes  stability study (eps, gamma, v, C0, box, graded grids), runs/extremes/extremes.md"
-	@echo "make limits   the Clifford torus and symmetric budding as eps falls, runs/limits/"
+	@echo "make limits   the Clifford torus, symmetric budding and the split as eps falls, runs/limits/"
 	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
 	@echo "make pears    the prolate's pear bifurcation in c0 at v 0.8 per eps, against the sharp D_pe line (runs/pears)"
 	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, eps 0.01 where 0.02 fails, the merged diagram in runs/atlas/merged"

@@ -133,6 +133,14 @@ def two_spheres(area, volume, ratio=1.0):
     return np.array([rho1, ratio * rho1]), np.array([-centroid, D - centroid])
 
 
+def tanh_sphere(rho, eps):
+    """The phase-field area and volume (`A[phi]`, `V[phi]` of the model) of the tanh
+    profile of a sphere of radius rho >> eps: 4 pi (rho^2 + (pi^2 - 6) eps^2 / 6) and
+    4/3 pi rho^3 + 2/3 pi^3 rho eps^2, exact but for terms in exp(-rho / eps)."""
+    area = 4.0 * np.pi * (rho * rho + (np.pi ** 2 - 6.0) * eps * eps / 6.0)
+    return area, 4.0 / 3.0 * np.pi * rho ** 3 + 2.0 / 3.0 * np.pi ** 3 * rho * eps * eps
+
+
 def spheres_distance(points, radii, heights, zc):
     """Signed distance to the union of spheres centred on the axis at zc +
     heights, positive inside (exact outside and in each sphere away from the

@@ -321,9 +321,9 @@ class Solver:
 
     # -- continuation --------------------------------------------------------
     # A branch is followed in a scene parameter p that `at(p)` sets on the
-    # problem. F is affine (A0, V0) or quadratic (C0: grad E is linear in W, W
-    # affine in C0) in the scene's parameters, so F_p by central differences is
-    # exact but for rounding.
+    # problem: the targets c0 and C0. F is quadratic in C0 (grad E is linear in
+    # W, W affine in C0), so F_p by central differences is exact but for
+    # rounding; where C0 stays, only the constraint rows -(c - c0) move.
     def _residual(self, x, out):
         """out = F(x, nu) = [grad E - C^T nu; -(c - c0)] in the bordered layout."""
         P = self.P
@@ -335,13 +335,22 @@ class Solver:
         return out
 
     def _parameter_derivative(self, x, p, at, out):
-        """out = dF/dp at (x, nu, p), by central differences; leaves the problem at p."""
+        """out = dF/dp at (x, nu, p), by central differences; leaves the problem at p.
+        A parameter that moves only the targets (v, R) costs no evaluation of F."""
+        P = self.P
         h = DP * max(1.0, abs(p))
         at(p + h)
-        self._residual(x, out)
+        up, c0_up = P.targets.copy(), P.forms.c0
         at(p - h)
-        out.axpy(-1.0, self._residual(x, out.duplicate()))
-        out.scale(0.5 / h)
+        if P.forms.c0 == c0_up:  # F_p = [0; dc0/dp]
+            out.zeroEntries()
+            if P.comm.getRank() == P.comm.getSize() - 1:
+                out.getArray()[P.layout.nowned:] = (up - P.targets) * (0.5 / h)
+        else:
+            self._residual(x, out)
+            at(p + h)
+            out.axpy(-1.0, self._residual(x, out.duplicate()))
+            out.scale(-0.5 / h)
         at(p)
         return out
 

@@ -3,15 +3,21 @@
     python -m pfmembrane.studies.limits [--np 2] [--out runs/limits] [--only clifford]
 
 the Clifford torus (options/limits/clifford.opts: E -> pi^2 k, both multipliers -> 0,
-radii in ratio 1 : sqrt 2) and symmetric budding (two spheres of radius R / sqrt 2 with
-H = C0 at v = 1 / sqrt 2, C0 = sqrt 2 / R: E -> 0). A Clifford row is the run `python -m
-pfmembrane -options_file SCENE -pf_nodes N -pf_eps EPS` would make, from the scene's own
-start, the rows of one grid on that grid built once. Budding is reached by continuation in
-C0 on the half box (`budded`): the two touching spheres started from directly do not
-converge (runs/limits/notes.md). All in one process on NP ranks (started under mpiexec if
-need be); existing checkpoints are reused. The level set of phi_h is measured by
-`analysis.limit`: its topology, the torus's own energy (`loop_energy`) and radii, and the
-upper lobe's half height, largest r and neck radius (`lobe`).
+radii in ratio 1 : sqrt 2) and symmetric budding (two spheres of radius R / sqrt 2 with H
+= C0 at v = 1 / sqrt 2, C0 = sqrt 2 / R: E -> 0), and the split (`--only split`): two
+spheres apart, at the least reduced volume where the phase field's two spheres exist. A
+Clifford row is the run `python -m pfmembrane -options_file SCENE -pf_nodes N -pf_eps EPS`
+would make, from the scene's own start, the rows of one grid on that grid built once.
+Budding is reached by continuation in C0 on the half box (`budded`): the two touching
+spheres started from directly do not converge (runs/limits/notes.md). At v = 1 / sqrt 2
+the phase field cannot split: two tanh spheres with the area A0 hold more than V0
+(`split_volume`); at the least volume they do hold, a start of two spheres SPLIT_GAP eps
+apart goes to two spheres of radius near R / sqrt 2, reported after stage 1: apart, they
+feel each other only through terms in exp(-gap / eps), so no Newton iteration settles
+their distance. All in one process on NP ranks (started under mpiexec if need be);
+existing checkpoints are reused. The level set of phi_h is measured by `analysis.limit`:
+its topology, the torus's own energy (`loop_energy`) and radii, and the upper lobe's half
+height, largest r and neck radius (`lobe`).
 """
 import argparse
 import dataclasses
@@ -27,13 +33,17 @@ from pfmembrane.studies import launch
 # (eps, nodes) of each limit, the grid resolving the smallest eps on its box.
 # Budding: nodes are the spacing of that many in the paper box.
 ROWS = {'clifford': [(0.04, 6124), (0.03, 6124), (0.02, 6124), (0.015, 10000)],
-        'budding': [(0.04, 6124), (0.03, 12000), (0.02, 22000), (0.015, 40000)]}
+        'budding': [(0.04, 6124), (0.03, 12000), (0.02, 22000), (0.015, 40000)],
+        'split': [(0.04, 6124), (0.03, 12000), (0.02, 22000)]}
 CLIFFORD = os.path.join('options', 'limits', 'clifford.opts')
 RADIUS = 0.4
 BUD_V, BUD_C0 = 1 / math.sqrt(2), math.sqrt(2) / RADIUS
 # The budding path: the prolate's sharp shape at C0 = BUD_FROM (one body, a wide neck), in
 # a half box that holds it and the two spheres with 5 eps to spare at eps 0.04.
 BUD_FROM, BUD_BOX, BUD_DS = 1.25, (0.5, 2.0), 0.25
+SPLIT_GAP = 6.0  # eps between the two spheres of the split's start
+# The split ends with stage 1 (see the docstring); its multipliers start at the limit's, 0.
+SPLIT_OPTIONS = {'pf_stage1_rtol': 1e-6, 'stage2_snes_max_it': 0}
 
 
 def clifford(eps, nodes, out, cache):
@@ -71,6 +81,39 @@ def budded(eps, nodes, out):
     res = pf.solve(dataclasses.replace(scene, c0=BUD_C0), grid, eps, start=last,
                    options={'pf_stage1': 'none'})
     res.attrs.update(continuation_points=points, wall_time=time.perf_counter() - t0)
+    res.save(path)
+    return res.checkpoint()
+
+
+def split_volume(eps, radius=RADIUS):
+    """(v, rho): the least reduced volume of two tanh spheres of phase-field area
+    4 pi R^2 (`kernels.initial.tanh_sphere`): two equal ones, of radius rho;
+    v = 1 / sqrt 2 (1 + (pi^2 / 2 + 3) eps^2 / R^2) to second order in eps / R."""
+    from pfmembrane.kernels.initial import tanh_sphere
+    rho = math.sqrt(radius ** 2 / 2 - (math.pi ** 2 - 6) * eps ** 2 / 6)
+    return 2 * tanh_sphere(rho, eps)[1] / (4 / 3 * math.pi * radius ** 3), rho
+
+
+def split(eps, nodes, out):
+    """The checkpoint of one split row: two tanh spheres of radius `split_volume`'s rho,
+    SPLIT_GAP eps apart about the mirror plane, solved at v = `split_volume` and
+    C0 = sqrt 2 / R with SPLIT_OPTIONS; read back if it exists. Collective."""
+    import pfmembrane as pf
+    from pfmembrane.kernels import initial
+    from pfmembrane.scenes import paper_spacing
+    path = os.path.join(out, f"split_n{nodes}_eps{eps:g}.h5")
+    if os.path.exists(path):
+        return pf.read(path).checkpoint()
+    v, rho = split_volume(eps)
+    scene = pf.Scene(reduced_volume=v, c0=BUD_C0, radius=RADIUS, box=BUD_BOX,
+                     branch='budded', symmetric=True)
+    grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, BUD_BOX))
+    height = rho + 0.5 * SPLIT_GAP * eps
+    phi = initial.profile(initial.spheres_distance(grid.nodes, [rho, rho],
+                                                   np.array([-height, height]), scene.zc), eps)
+    start = pf.Result(grid.nodes, phi, dict(eps=eps, symmetric=1, converged=1,
+                                            nu_area=0.0, nu_volume=0.0))
+    res = pf.solve(scene, grid, eps, start=start, options=SPLIT_OPTIONS)
     res.save(path)
     return res.checkpoint()
 
@@ -113,7 +156,7 @@ def main(argv=None):
         rows = []
         for eps, nodes in ROWS[name]:
             ck = (clifford(eps, nodes, args.out, cache) if name == 'clifford' else
-                  budded(eps, nodes, args.out).unfolded())
+                  {'budding': budded, 'split': split}[name](eps, nodes, args.out).unfolded())
             a = ck.attrs
             label, tori, lobed = measure(ck) if root else ('', [], (math.nan,) * 3)
             rows.append((eps, nodes, a, label, tori, lobed))
@@ -131,6 +174,23 @@ def main(argv=None):
                     f"{int(a['stage2_iterations'])} | {int(a['converged'])} | {a['wall_time']:.1f} | {e:.5f} | "
                     f"{100 * (e / math.pi ** 2 - 1):+.3f}% | {tube:.4f} | {centre:.4f} | "
                     f"{centre / tube:.4f} |")
+        elif name == 'split':
+            target = RADIUS / math.sqrt(2)
+            lines += [f'## The split: two spheres apart at v = 1 / sqrt 2 (1 + (pi^2 / 2 + 3) eps^2 / R^2)',
+                      '', f'C0 = sqrt 2 / R, half box {BUD_BOX[0]:g} x {BUD_BOX[1]:g}, from two tanh '
+                      f'spheres {SPLIT_GAP:g} eps apart; stage 1 only (stage-1 relative constraint '
+                      f"residual {SPLIT_OPTIONS['pf_stage1_rtol']:g}), so converged is 0.", '',
+                      '| nodes | eps | v | v sqrt 2 - 1 | E | nu_A | nu_V | phi_h = 0 | stage-1 its '
+                      '| wall s | lobe half height | vs R/sqrt2 | lobe largest r | vs R/sqrt2 |',
+                      '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+            for eps, nodes, a, label, _, (half, width, _) in rows:
+                v = a['reduced_volume']
+                lines.append(
+                    f"| {int(a['n_nodes'])} | {eps:g} | {v:.5f} | {100 * (v * math.sqrt(2) - 1):+.2f}% | "
+                    f"{a['energy']:.5f} | {a['nu_area']:.4f} | {a['nu_volume']:.3f} | {label} | "
+                    f"{int(a['stage1_iterations'])} | {a['wall_time']:.1f} | {half:.5f} | "
+                    f"{100 * (half / target - 1):+.2f}% | {width:.5f} | "
+                    f"{100 * (width / target - 1):+.2f}% |")
         else:
             target = RADIUS / math.sqrt(2)
             lines += [f'## Symmetric budding: two spheres of radius R / sqrt 2 = {target:.5f}, E -> 0',
