@@ -9,6 +9,9 @@ export OMPI_ALLOW_RUN_AS_ROOT = 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM = 1
 export OMPI_MCA_rmaps_base_oversubscribe = 1
 export OMPI_MCA_btl_vader_single_copy_mechanism = none
+# One BLAS thread per process: the batched products are small, and two threads per process
+# on 2 cores spin (runs/atlas/notes.md: one rank 47.0 s against 57.7 s).
+export OPENBLAS_NUM_THREADS ?= 1
 MPIEXEC ?= mpiexec
 DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-scipy python3-numpy \
        python3-matplotlib python3-venv python3-pip openmpi-bin

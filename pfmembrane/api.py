@@ -360,6 +360,7 @@ class _Branch:
         self.solver = Solver(self.P, appoptions.read_settings(PETSc.Options(), self.prefix),
                              self.prefix)
         self.solver.nu = result.nu
+        self.checked = {}  # what `phase_field_checks` keeps between this branch's points
 
     def at(self, value):
         """Put the problem at `value` of the parameter: its targets and C0. Not a
@@ -433,11 +434,12 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
         start = None if negative is None else negative - solver.ncon
         result.attrs['index_0'] = -1 if start is None else start
         step, s, previous = abs(ds), 0.0, (t[2], start)
+        behind = None  # the point before this one and the step between them
         for _ in range(steps):
             x_old, nu_old = x.copy(), solver.nu.copy()
             try:
-                p_new, its, negative, (bx, bnu) = solver.arclength(x, p, t, step, branch.at,
-                                                                   CORRECTOR_MAX_IT)
+                p_new, its, negative, (bx, bnu) = solver.arclength(
+                    x, p, t, step, branch.at, CORRECTOR_MAX_IT, _bend(behind, x, nu_old, p, t, step))
                 if _distance(x, x_old, p_new - p) > JUMP * step:
                     raise SolveError("the corrector left the step's neighbourhood")
             except SolveError:
@@ -452,6 +454,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
                     return
                 continue
             s += step
+            behind = (x_old, nu_old, p, step)
             p = p_new
             # the new tangent continues the old one: (b, 1) oriented by t
             t_new = _unit(bx, bnu, 1.0)
@@ -466,6 +469,23 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
             step = min(1.5 * step, ds_max) if its <= GROW_IT else step
     finally:
         branch.close()
+
+
+def _bend(behind, x, nu, p, t, ds):
+    """The second-order term of the predictor at (x, nu, p) with unit tangent t for
+    a step ds: (ds / h)^2 (X_behind - X + h t), with X_behind the point a step h
+    back, X(s - h) = X - h t + h^2 X'' / 2 + O(h^3). None for a branch's first
+    step. It takes the corrector's start from O(ds^2) to O(ds^3) off the branch
+    (runs/atlas/notes.md)."""
+    if behind is None:
+        return None
+    xb, nub, pb, h = behind
+    w = (ds / h) ** 2
+    bx = xb.copy()
+    bx.axpy(-1.0, x)
+    bx.axpy(h, t[0])
+    bx.scale(w)
+    return bx, w * (nub - nu + h * np.asarray(t[1])), w * (pb - p + h * t[2])
 
 
 def _distance(x, y, dp):
@@ -502,7 +522,7 @@ def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
     phi = branch.grid.discrete.layout.nodal(branch.x, -1.0)
     if checks:
         attrs.update(phase_field_checks(branch.grid.comm.tompi4py(), branch.grid.nodes, phi,
-                                        attrs))
+                                        attrs, branch.checked))
     return Result(branch.grid.nodes, phi, attrs, grid=branch.grid)
 
 
@@ -796,19 +816,22 @@ def _event_seconds(mpi, names, stages):
     return mpi.allreduce(mine, op=_max())
 
 
-def phase_field_checks(mpi, xy, phi, attrs):
+def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
     set exists, its topology (`limit.topology`: ``topology``, ``components``,
     ``genus``) and, for one sphere, the level set's own energy
     (`limit.level_set_energy`) and, where the scene has a sharp-interface
     shape, the energy error and level-set distance against it, or for one
     torus its own energy and radii (`limit.loop_energy`), as attributes.
-    Rank 0 computes."""
+    Rank 0 computes. `keep`, a dict, carries the basis's locality from one
+    call to the next on the same nodes (a continuation's points)."""
     from pfmembrane.analysis import limit
     result = {}
     if mpi.Get_rank() == 0:
         ckpt = checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded()
-        field_h = limit.PhaseField(ckpt)
+        keep = {} if keep is None else keep
+        field_h = limit.PhaseField(ckpt, keep.get('beta'))
+        keep['beta'] = field_h.beta
         result['boundary_phi'] = limit.boundary_phi(ckpt, field=field_h)
         try:
             curve = limit.level_set(ckpt, field=field_h)

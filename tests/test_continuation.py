@@ -79,6 +79,49 @@ def test_arclength_points_solve_the_scene_at_their_parameter(solved):
         analysis.destroy()
 
 
+def test_the_corrector_lands_on_its_hyperplane_from_either_predictor(solved):
+    """Two steps in v by Solver.arclength: the second from the tangent predictor and from
+    the one with the second-order term of the last two points (api._bend). That term
+    brings the start closer to the branch (measured |F| 0.026 against 0.123), both reach
+    the same point of the same hyperplane (measured 1.1e-12 apart in v), and from the
+    closer start the last step is a chord step on the factorization before (measured:
+    3 steps on 3 factorizations from the tangent alone, on 2 with the term)."""
+    from pfmembrane.api import _Branch, _bend, _unit
+    branch = _Branch(solved, 'reduced_volume', None, None)
+    try:
+        solver, x, ds = branch.solver, branch.x, 0.02
+        (bx, bnu), _ = solver.tangent(x, 0.9, branch.at)
+        t = _unit(bx, bnu, 1.0)
+        x0, nu0 = x.copy(), solver.nu.copy()
+        p1, _, _, (bx, bnu) = solver.arclength(x, 0.9, t, ds, branch.at, 8)
+        t1 = _unit(bx, bnu, 1.0)
+        x1, nu1 = x.copy(), solver.nu.copy()
+        F = solver.P.bordered_matrix().createVecLeft()
+        starts, ends = [], []
+        for bend in (None, _bend((x0, nu0, 0.9, ds), x1, nu1, p1, t1, ds)):
+            bend_x, bend_nu, bend_p = bend or (x.duplicate(), 0.0, 0.0)
+            x1.copy(x)
+            x.axpy(ds, t1[0])
+            x.axpy(1.0, bend_x)
+            solver.nu = nu1 + ds * t1[1] + bend_nu
+            branch.at(p1 + ds * t1[2] + bend_p)
+            starts.append(solver._residual(x, F).norm())
+            x1.copy(x)
+            solver.nu = nu1.copy()
+            branch.at(p1)
+            before = solver.factorizations
+            p2, its, _, _ = solver.arclength(x, p1, t1, ds, branch.at, 8, bend)
+            ends.append((p2, x.copy(), its, solver.factorizations - before))
+        assert starts[1] < 0.8 * starts[0]
+        assert ends[1][0] == pytest.approx(ends[0][0], abs=1e-9)
+        d = ends[1][1].copy()
+        d.axpy(-1.0, ends[0][1])
+        assert d.norm(3) < 1e-7 * ends[0][1].norm(3)
+        assert ends[0][3] <= ends[0][2] and ends[1][3] < ends[1][2]
+    finally:
+        branch.close()
+
+
 def test_continuation_in_c0_goes_both_ways(solved):
     down = next(pf.continuation(solved, 'c0', ds=-0.05, steps=1, checks=False))
     up = next(pf.continuation(solved, 'c0', ds=0.05, steps=1, checks=False))

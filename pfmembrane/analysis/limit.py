@@ -107,13 +107,16 @@ class PhaseField:
     ----------
     ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
         Needs ``nodes``, ``phi`` and ``attrs['gamma']``, ``attrs['cutoff']``.
+    beta : ndarray, optional
+        The locality of these nodes, if the caller has it (another field
+        on the same nodes): the nodal spacing is the costly part.
     """
 
-    def __init__(self, ckpt):
+    def __init__(self, ckpt, beta=None):
         self.cutoff = float(ckpt.attrs["cutoff"])
         self.nodes, self.phi = ckpt.nodes, np.asarray(ckpt.phi)
-        self.beta = locality(ckpt.nodes, float(ckpt.attrs["gamma"]),
-                             int(ckpt.attrs.get("spacing_smoothing", 0)))
+        self.beta = beta if beta is not None else locality(
+            ckpt.nodes, float(ckpt.attrs["gamma"]), int(ckpt.attrs.get("spacing_smoothing", 0)))
 
     def __call__(self, points, gradient=False):
         """phi_h at `points`, shape (M, 2), in the hull of the mirrored nodes.

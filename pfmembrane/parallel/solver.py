@@ -25,6 +25,11 @@ RESTART_GTOL = 1e-6
 # Relative parameter step of the central difference F_p in the arclength corrector.
 DP = 1e-4
 CRITICAL_IT = 12  # inverse iterations for the critical mode at a bifurcation
+# The arclength corrector keeps its factorization once |F| is below CHORD_RTOL of the
+# predictor's (there a chord step gains as much as a Newton step's last digits need),
+# as long as each chord step cuts |F| by CHORD_GAIN (runs/atlas/notes.md).
+CHORD_RTOL = 1e-5
+CHORD_GAIN = 0.1
 
 
 class SolveError(Exception):
@@ -414,17 +419,21 @@ class Solver:
         y.scale(scale)
         return y, scale * nu, value, self._negative_pivots(ksp)
 
-    def arclength(self, x, p, t, ds, at, max_it=25):
+    def arclength(self, x, p, t, ds, at, max_it=25, bend=None):
         """The pseudo-arclength corrector (Keller's bordering): Newton on
         F(x, nu; p) = 0 with N = t_x . (x - x0) + t_p (p - p0) - ds = 0, from
-        the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p).
+        the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p) plus `bend`.
 
         `t` = (t_x Vec, t_nu, t_p) with (t_x, t_p) a unit vector in the norm
-        |(x, p)|^2 = x . x / n + p^2 (n free values: an RMS of phi). Each
-        iteration factors J once and solves J a = -F, J b = -F_p: the step is
-        a + dp b, dp making N vanish to first order; b is dX/dp there. Returns
-        (p, iterations, negative pivots of the last factorization, (b_x, b_nu));
-        x and nu are updated in place. Raises SolveError after `max_it`.
+        |(x, p)|^2 = x . x / n + p^2 (n free values: an RMS of phi); `bend`
+        (b_x Vec, b_nu, b_p), if given, is the predictor's second-order term.
+        Each iteration solves J a = -F, J b = -F_p: the step is a + dp b, dp
+        making N vanish to first order; b is dX/dp there. J is factored again
+        unless |F| is below CHORD_RTOL of the predictor's (a chord step: Newton
+        has converged but for its last digits), and always after a chord step
+        that gained less than CHORD_GAIN. Returns (p, iterations, negative
+        pivots of the last factorization, (b_x, b_nu)); x and nu are updated in
+        place. Raises SolveError after `max_it`.
         """
         P = self.P
         K = P.bordered_matrix()
@@ -435,8 +444,12 @@ class Solver:
         x.axpy(ds, tx)
         self.nu = self.nu + ds * np.asarray(tnu)
         p = p0 + ds * tp
+        if bend is not None:
+            x.axpy(1.0, bend[0])
+            self.nu = self.nu + np.asarray(bend[1])
+            p += bend[2]
         dx, n = x.duplicate(), x.getSize()
-        norm0 = None
+        norm0 = last = None
         for it in range(max_it):
             self._parameter_derivative(x, p, at, Fp)
             self._residual(x, F)
@@ -447,13 +460,15 @@ class Solver:
             norm0 = norm if norm0 is None else norm0
             if it and norm <= max(self.p.stage2_rtol * norm0, 1e-12) and abs(N) < 1e-10 * abs(ds):
                 break
-            P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-            ksp.setOperators(K)
+            if not (it and norm <= CHORD_RTOL * norm0 and norm <= CHORD_GAIN * last):
+                P.assemble_bordered(x, self.nu[0], self.C, 0.0)
+                ksp.setOperators(K)
+                self.factorizations += 1
+            last = norm
             F.scale(-1.0)
             ksp.solve(F, a)
             Fp.scale(-1.0)
             ksp.solve(Fp, b)
-            self.factorizations += 1
             ax, _ = self._split(a)
             bx, _ = self._split(b)
             dp = -(N + tx.dot(ax) / n) / (tx.dot(bx) / n + tp)
