@@ -325,12 +325,12 @@ class Tangent(NamedTuple):
 # Scene parameters a branch can follow (`Solver.tangent`, `Solver.arclength`).
 CONTINUATION = ('reduced_volume', 'c0', 'radius')
 # A continuation step is retried at half the length when its corrector needs more than
-# CORRECTOR_MAX_IT iterations (3-5 on a regular stretch) or lands farther than JUMP steps
-# from the last point: both are how a long step onto another branch shows
-# (runs/atlas/notes.md).
-CORRECTOR_MAX_IT = 8
+# CORRECTOR_MAX_IT Newton steps (factorizations; 3-4 on a regular stretch, then chord
+# steps) or lands farther than JUMP steps from the last point: both are how a long step
+# onto another branch shows (runs/atlas/notes.md).
+CORRECTOR_MAX_IT = 7
 JUMP = 2.0
-GROW_IT = 4  # a corrector of at most this many iterations lets the next step grow
+GROW_IT = 3  # a corrector of at most this many factorizations lets the next step grow
 
 
 class _Branch:
@@ -401,7 +401,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     |(x, p)|^2 = x . x / n + p^2 of the n free nodal values x (their RMS) and
     the parameter p (`Solver.arclength`), the first step in the direction
     of increasing parameter for ds > 0. The step grows by 1.5 after a
-    corrector of at most GROW_IT iterations (to `ds_max`, by default 4 |ds|)
+    corrector of at most GROW_IT factorizations (to `ds_max`, by default 4 |ds|)
     and halves after a failed one (`CORRECTOR_MAX_IT`, `JUMP`). Each result's
     attrs carry the parameter, `arclength`, `index_0` (negative eigenvalues
     of the Hessian of the Lagrangian on the constraints' tangent space: the
@@ -438,7 +438,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
         for _ in range(steps):
             x_old, nu_old = x.copy(), solver.nu.copy()
             try:
-                p_new, its, negative, (bx, bnu) = solver.arclength(
+                p_new, its, factored, negative, (bx, bnu) = solver.arclength(
                     x, p, t, step, branch.at, CORRECTOR_MAX_IT, _bend(behind, x, nu_old, p, t, step))
                 if _distance(x, x_old, p_new - p) > JUMP * step:
                     raise SolveError("the corrector left the step's neighbourhood")
@@ -466,7 +466,7 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
                           and index != previous[1] and not fold)
             t, previous = t_new, (t_new[2], index)
             yield _point(branch, p, s, index, t_new[2], fold, changed, its, checks)
-            step = min(1.5 * step, ds_max) if its <= GROW_IT else step
+            step = min(1.5 * step, ds_max) if factored <= GROW_IT else step
     finally:
         branch.close()
 

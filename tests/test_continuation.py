@@ -93,7 +93,7 @@ def test_the_corrector_lands_on_its_hyperplane_from_either_predictor(solved):
         (bx, bnu), _ = solver.tangent(x, 0.9, branch.at)
         t = _unit(bx, bnu, 1.0)
         x0, nu0 = x.copy(), solver.nu.copy()
-        p1, _, _, (bx, bnu) = solver.arclength(x, 0.9, t, ds, branch.at, 8)
+        p1, _, _, _, (bx, bnu) = solver.arclength(x, 0.9, t, ds, branch.at, 7)
         t1 = _unit(bx, bnu, 1.0)
         x1, nu1 = x.copy(), solver.nu.copy()
         F = solver.P.bordered_matrix().createVecLeft()
@@ -110,8 +110,9 @@ def test_the_corrector_lands_on_its_hyperplane_from_either_predictor(solved):
             solver.nu = nu1.copy()
             branch.at(p1)
             before = solver.factorizations
-            p2, its, _, _ = solver.arclength(x, p1, t1, ds, branch.at, 8, bend)
-            ends.append((p2, x.copy(), its, solver.factorizations - before))
+            p2, its, factored, _, _ = solver.arclength(x, p1, t1, ds, branch.at, 7, bend)
+            assert solver.factorizations - before == factored
+            ends.append((p2, x.copy(), its, factored))
         assert starts[1] < 0.8 * starts[0]
         assert ends[1][0] == pytest.approx(ends[0][0], abs=1e-9)
         d = ends[1][1].copy()

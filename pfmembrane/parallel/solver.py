@@ -7,6 +7,7 @@ tension, nu_V the pressure difference.
 """
 import ctypes
 import functools
+import itertools
 import math
 import time
 
@@ -419,7 +420,7 @@ class Solver:
         y.scale(scale)
         return y, scale * nu, value, self._negative_pivots(ksp)
 
-    def arclength(self, x, p, t, ds, at, max_it=25, bend=None):
+    def arclength(self, x, p, t, ds, at, max_it=24, bend=None):
         """The pseudo-arclength corrector (Keller's bordering): Newton on
         F(x, nu; p) = 0 with N = t_x . (x - x0) + t_p (p - p0) - ds = 0, from
         the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p) plus `bend`.
@@ -431,9 +432,10 @@ class Solver:
         making N vanish to first order; b is dX/dp there. J is factored again
         unless |F| is below CHORD_RTOL of the predictor's (a chord step: Newton
         has converged but for its last digits), and always after a chord step
-        that gained less than CHORD_GAIN. Returns (p, iterations, negative
-        pivots of the last factorization, (b_x, b_nu)); x and nu are updated in
-        place. Raises SolveError after `max_it`.
+        that gained less than CHORD_GAIN. Returns (p, iterations, factorizations,
+        negative pivots of the last factorization, (b_x, b_nu)); x and nu are
+        updated in place. Raises SolveError where `max_it` Newton steps (on as
+        many factorizations; chord steps do not count) have not converged.
         """
         P = self.P
         K = P.bordered_matrix()
@@ -450,7 +452,8 @@ class Solver:
             p += bend[2]
         dx, n = x.duplicate(), x.getSize()
         norm0 = last = None
-        for it in range(max_it):
+        factored, converged = 0, False
+        for it in itertools.count():
             self._parameter_derivative(x, p, at, Fp)
             self._residual(x, F)
             x.copy(dx)
@@ -458,9 +461,14 @@ class Solver:
             N = tx.dot(dx) / n + tp * (p - p0) - ds
             norm = F.norm()
             norm0 = norm if norm0 is None else norm0
-            if it and norm <= max(self.p.stage2_rtol * norm0, 1e-12) and abs(N) < 1e-10 * abs(ds):
+            converged = (it > 0 and norm <= max(self.p.stage2_rtol * norm0, 1e-12)
+                         and abs(N) < 1e-10 * abs(ds))
+            if converged:
                 break
             if not (it and norm <= CHORD_RTOL * norm0 and norm <= CHORD_GAIN * last):
+                if factored == max_it:
+                    break
+                factored += 1
                 P.assemble_bordered(x, self.nu[0], self.C, 0.0)
                 ksp.setOperators(K)
                 self.factorizations += 1
@@ -478,10 +486,10 @@ class Solver:
             self.nu = self.nu + step_nu
             p += dp
             at(p)
-        else:
-            raise SolveError(f"the arclength corrector did not converge in {max_it} iterations "
-                             f"(|F| {norm:.2e}); try a shorter step")
-        return p, it, self._negative_pivots(ksp), self._split(b)
+        if not converged:
+            raise SolveError(f"the arclength corrector did not converge in {max_it} Newton "
+                             f"iterations (|F| {norm:.2e}); try a shorter step")
+        return p, it, factored, self._negative_pivots(ksp), self._split(b)
 
     def destroy(self):
         """Free the PETSc objects kept between iterations."""
