@@ -61,6 +61,20 @@ def test_a_stretch_ends_at_a_topology_change_and_a_fold_counts_both_pieces():
     assert best[0][1] == pytest.approx(7.5 + (8.4 - 7.5) * (0.80 - 0.78) / 0.05)
 
 
+def test_a_fold_is_read_at_the_turn_of_v_not_at_the_point_past_it():
+    """v(s) = 0.6 + (s - 0.3)^2 sampled at s = 0, 0.2, 0.45: the first point past the
+    turn is at v 0.6225, the turn at 0.6 (exact for a parabola); a turn between two
+    points only (a path's first step) gives the point past it."""
+    path = [dict(_point(0.6 + (s - 0.3) ** 2, 1.0), arclength=s, index=i)
+            for i, s in enumerate((0.0, 0.2, 0.45))]
+    path[2]['fold'] = 1
+    assert atlas.turning_v(path, 2) == pytest.approx(0.6, abs=1e-12)
+    assert atlas.turning_v(path[1:], 1) == pytest.approx(0.6225)
+    branch = dict(points=[dict(p, direction=-1) for p in path])
+    branch['points'][0]['direction'] = 0
+    assert atlas.folds(branch) == ['fold at v 0.6000 (index 1 -> 2)']
+
+
 def test_events_and_continuations_follow_each_direction_from_the_start():
     start = _point(0.62, 12.0, direction=0)
     down = [_point(0.60, 12.1, direction=-1), _point(0.58, 12.2, '1 torus', direction=-1)]

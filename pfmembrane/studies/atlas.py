@@ -491,9 +491,25 @@ def merge(sources, out):
 
 def folds(branch):
     """The folds of a branch, as text: where its continuations turned back in v."""
-    return [f"fold at v {p['v']:.4f} (index {before['index']} -> {p['index']})"
-            for path in paths(branch['points']) for before, p in zip(path, path[1:])
-            if p['fold']]
+    return [f"fold at v {turning_v(path, k):.4f} (index {path[k - 1]['index']} -> "
+            f"{path[k]['index']})"
+            for path in paths(branch['points']) for k in range(1, len(path))
+            if path[k]['fold']]
+
+
+def turning_v(path, k):
+    """The v where a path turns, between its points k - 1 and k (the first past the turn):
+    the vertex of the parabola v(s) through three points around it, which the step
+    lengths move less than the points themselves (none beyond them)."""
+    near = path[max(0, min(k - 2, len(path) - 3)):][:3]
+    v = np.array([p['v'] for p in near])
+    if len(near) < 3:
+        return float(v[-1])
+    a, b, _ = np.polyfit([p['arclength'] for p in near], v, 2)
+    s = -b / (2 * a) if a else math.nan
+    if not min(p['arclength'] for p in near) <= s <= max(p['arclength'] for p in near):
+        return float(v[np.argmax(v)] if a < 0 else v[np.argmin(v)])
+    return float(np.polyval(np.polyfit([p['arclength'] for p in near], v, 2), s))
 
 
 def median_step(branch):
