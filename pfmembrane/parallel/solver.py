@@ -28,7 +28,7 @@ DP = 1e-4
 CRITICAL_IT = 12  # inverse iterations for the critical mode at a bifurcation
 # The arclength corrector keeps its factorization once |F| is below CHORD_RTOL of the
 # predictor's (there a chord step gains as much as a Newton step's last digits need),
-# as long as each chord step cuts |F| by CHORD_GAIN (runs/atlas/notes.md).
+# as long as each step cuts |F| by CHORD_GAIN (runs/atlas/notes.md).
 CHORD_RTOL = 1e-5
 CHORD_GAIN = 0.1
 
@@ -420,7 +420,7 @@ class Solver:
         y.scale(scale)
         return y, scale * nu, value, self._negative_pivots(ksp)
 
-    def arclength(self, x, p, t, ds, at, max_it=24, bend=None):
+    def arclength(self, x, p, t, ds, at, max_it=25, bend=None):
         """The pseudo-arclength corrector (Keller's bordering): Newton on
         F(x, nu; p) = 0 with N = t_x . (x - x0) + t_p (p - p0) - ds = 0, from
         the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p) plus `bend`.
@@ -430,9 +430,9 @@ class Solver:
         (b_x Vec, b_nu, b_p), if given, is the predictor's second-order term.
         Each iteration solves J a = -F, J b = -F_p: the step is a + dp b, dp
         making N vanish to first order; b is dX/dp there. J is factored again
-        unless |F| is below CHORD_RTOL of the predictor's (a chord step: Newton
-        has converged but for its last digits), and always after a chord step
-        that gained less than CHORD_GAIN. Returns (p, iterations, factorizations,
+        unless |F| is below CHORD_RTOL of the predictor's and the last step cut
+        it by CHORD_GAIN (then a chord step: Newton has converged but for its
+        last digits). Returns (p, iterations, factorizations,
         negative pivots of the last factorization, (b_x, b_nu)); x and nu are
         updated in place. Raises SolveError where `max_it` Newton steps (on as
         many factorizations; chord steps do not count) have not converged.

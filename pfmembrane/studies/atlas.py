@@ -505,11 +505,11 @@ def turning_v(path, k):
     v = np.array([p['v'] for p in near])
     if len(near) < 3:
         return float(v[-1])
-    a, b, _ = np.polyfit([p['arclength'] for p in near], v, 2)
-    s = -b / (2 * a) if a else math.nan
-    if not min(p['arclength'] for p in near) <= s <= max(p['arclength'] for p in near):
-        return float(v[np.argmax(v)] if a < 0 else v[np.argmin(v)])
-    return float(np.polyval(np.polyfit([p['arclength'] for p in near], v, 2), s))
+    s = np.array([p['arclength'] for p in near])
+    a, b, c = np.polyfit(s, v, 2)
+    if a and s.min() <= -b / (2 * a) <= s.max():
+        return float(c - b * b / (4 * a))
+    return float(v.max() if a < 0 else v.min())
 
 
 def median_step(branch):
