@@ -186,11 +186,11 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
     _same(_numbers(one_dir), one, rtol=0.0)
     # the same branches at a smaller eps, each on its coarse branch's nodes adapted by CVT
     adapted = atlas('--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir), '--steps', '2',
-                    '--out', str(one_dir / 'adapted'))
+                    '--gamma', '0.7', '--out', str(one_dir / 'adapted'))
     assert adapted.count('adapt: CVT f=10 of the result and ') == 2
     with open(one_dir / 'atlas.json') as f, open(one_dir / 'adapted' / 'atlas.json') as g:
         coarse, fine = json.load(f)['branches'], json.load(g)['branches']
     for c, b in zip(coarse, fine):
         assert b['nodes'] == c['nodes'] and b['box'] == c['box'] and b['eps_min'] < 0.05
-        assert (c['eps'], b['eps']) == (0.06, 0.05)
+        assert (c['eps'], b['eps']) == (0.06, 0.05) and (c['gamma'], b['gamma']) == (0.8, 0.7)
         assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])

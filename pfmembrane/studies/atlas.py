@@ -2,7 +2,8 @@
 
     python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
         [--families prolate oblate stomatocyte pear] [--c0 X ...] [--ds 0.05] [--steps 120]
-        [--box Rb,Zb] [--out runs/atlas] [--force] [-- SOLVER OPTIONS]
+        [--box Rb,Zb] [--gamma 0.8] [--adapt F --coarse DIR] [--out runs/atlas] [--force]
+        [-- SOLVER OPTIONS]
     python -m pfmembrane.studies.atlas --plot runs/atlas
     python -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/stomatocyte --out DIR
 
@@ -31,6 +32,12 @@ The branches are independent: `--groups G` splits the NP ranks into G groups of 
 following every G-th branch on its own sub-communicator; the tables are the same whatever
 the grouping.
 
+`--adapt F --coarse DIR` follows each branch of the atlas DIR again at --eps on that branch's
+nodes relocated by CVT for 1 + F max |grad phi_h| over its points (`pf.adapt`), with max-ent
+locality --gamma (graded grids want less than uniform ones: runs/pears/README.md). A switched
+family does not retrace its route on these nodes: it starts from its coarse branch's first
+point, by Newton alone, and is followed both ways in v.
+
 `--merge` draws one diagram from several atlases: a family that the diagram's eps does not
 resolve (the stomatocyte at eps 0.02 keeps its bud off the axis) is followed at a smaller
 eps in an atlas of its own, and its branches replace that family's. Which state is least
@@ -46,7 +53,7 @@ import warnings
 
 import numpy as np
 
-from pfmembrane.io.options import UsageError
+from pfmembrane.io.options import Params, UsageError
 from pfmembrane.scenes import paper_spacing
 from pfmembrane.studies import launch
 
@@ -166,8 +173,8 @@ def trace(family, c0, args, comm, say):
     import pfmembrane as pf
     branch, half, first = FAMILIES[family]
     t0 = time.perf_counter()
-    described = dict(family=family, c0=c0, eps=args.eps, half=half, box=(math.nan, math.nan),
-                     nodes=0, eps_min=math.nan, points=[], shapes=[])
+    described = dict(family=family, c0=c0, eps=args.eps, gamma=args.gamma, half=half,
+                     box=(math.nan, math.nan), nodes=0, eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
         coarse = coarse_branch(args.coarse, family, c0) if args.adapt else None
         box = coarse['box'] if coarse else args.box or box_of(family, c0, args.eps)
@@ -175,17 +182,25 @@ def trace(family, c0, args, comm, say):
                          box=box, branch=branch, symmetric=half)
         if coarse:
             along = [pf.Result(*shape) for shape in coarse['shapes']]
-            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:])
+            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:],
+                            gamma=args.gamma)
         else:
-            grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm)
+            grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm,
+                                   gamma=args.gamma)
         say(f"-- {family} c0 {c0:g}: box {box[0]:g}x{box[1]:g}{' (half)' if half else ''}, "
             f"{grid!r}")
         t1 = time.perf_counter()
-        start = pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp'))
+        # the route to a switched branch is not on nodes adapted to the branch: it starts
+        # from the coarse branch's first point, by Newton alone (a saddle stays one)
+        resumed = bool(coarse) and family in SWITCHED
+        start = (pf.solve(along[0].scene, grid, args.eps, start=along[0],
+                          options=dict(args.solver, pf_stage1='none')) if resumed else
+                 pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp')))
     except (RuntimeError, UsageError) as e:
         say(f"-- {family} c0 {c0:g}: no start ({e})")
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
-    switch, jumped = family in SWITCHED, False
+    switch, jumped = family in SWITCHED and not resumed, False
+    where = start.attrs['reduced_volume']
     if switch and start.converged:
         start, where, jumped = bifurcation(
             start, args, lambda text: say(f"   {family} c0 {c0:g}: {branch} {text}"),
@@ -199,6 +214,9 @@ def trace(family, c0, args, comm, say):
     points = [dict(point(start, time.perf_counter() - t1), arclength=0.0, direction=0)]
     shapes = [(start.nodes, start.phi, dict(start.attrs))]
     ends = [f"started where the {branch}'s corrector left it at v {where:.4f}"] if jumped else []
+    if resumed:
+        ends.append(f"started from the first point of {args.coarse}'s branch at v {where:.4f}"
+                    + ('' if asymmetric(start) else ', which came back up-down symmetric'))
     switched = switch and not jumped
     if not start.converged:
         ends.append(f"the start at v {first:g} did not converge ({start.message})")
@@ -207,7 +225,7 @@ def trace(family, c0, args, comm, say):
     if switch:
         directions = [1] if switched else [int(math.copysign(1, start.attrs['dp_ds']))]
     else:
-        directions = [d for d, go in ((-1, first > V_MIN), (1, first < V_MAX)) if go]
+        directions = [d for d, go in ((-1, where > V_MIN), (1, where < V_MAX)) if go]
 
     def way(direction, v):  # where the corrector landed, the tangent's sign is not v's
         return 'down' if (v < points[0]['v'] if jumped else direction < 0) else 'up'
@@ -382,13 +400,15 @@ def write(branches, args, out, wall):
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
              f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
              f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
-    head = (f"eps {args.eps:g}, {grids}, R = {RADIUS:g}, k = 1; {args.np} MPI ranks in "
+    head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}, R = {RADIUS:g}, "
+            f"k = 1; {args.np} MPI ranks in "
             f"{args.groups} group(s) on {os.cpu_count()} cores.")
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
                f"--eps {args.eps:g} --nodes {args.nodes} --ds {args.ds:g} --steps {args.steps}"
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
                + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
+               + (f" --gamma {args.gamma:g}" if args.gamma != Params.gamma else '')
                + f" --out {args.out}`")
     lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
              "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
@@ -648,6 +668,9 @@ def main(argv=None):
                     help='follow each branch on the nodes of its branch in --coarse, relocated '
                          'by CVT for 1 + F max |grad phi_h| over its points')
     ap.add_argument('--coarse', metavar='DIR', help='the atlas whose branches --adapt follows')
+    ap.add_argument('--gamma', type=float, default=Params.gamma,
+                    help='max-ent locality of every grid (beta_a = gamma / h_a^2); graded '
+                         'grids want less than the uniform ones (runs/pears/README.md)')
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
