@@ -219,7 +219,7 @@ def trace(family, c0, args, comm, say):
                     + ('' if asymmetric(start) else ', which came back up-down symmetric'))
     switched = switch and not jumped
     if not start.converged:
-        ends.append(f"the start at v {first:g} did not converge ({start.message})")
+        ends.append(f"the start at v {where:g} did not converge ({start.message})")
     # a switched branch's two sides are mirror images: one is followed; a branch the
     # corrector landed on, onward from there
     if switch:
