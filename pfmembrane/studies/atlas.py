@@ -35,8 +35,8 @@ the grouping.
 `--adapt F --coarse DIR` follows each branch of the atlas DIR again at --eps on that branch's
 nodes relocated by CVT for 1 + F max |grad phi_h| over its points (`pf.adapt`), with max-ent
 locality --gamma (graded grids want less than uniform ones: runs/pears/README.md). A switched
-family does not retrace its route on these nodes: it starts from its coarse branch's first
-point, by Newton alone, and is followed both ways in v.
+family does not retrace its route on these nodes: it starts from its coarse branch's last
+stable point (index 0), by Newton alone, and is followed both ways in v.
 
 `--merge` draws one diagram from several atlases: a family that the diagram's eps does not
 resolve (the stomatocyte at eps 0.02 keeps its bud off the axis) is followed at a smaller
@@ -191,11 +191,15 @@ def trace(family, c0, args, comm, say):
             f"{grid!r}")
         t1 = time.perf_counter()
         # the route to a switched branch is not on nodes adapted to the branch: it starts
-        # from the coarse branch's first point, by Newton alone (a saddle stays one)
+        # from the coarse branch's last stable point, by Newton alone (its first point, next
+        # to the bifurcation, can fall back to the branch it left at a smaller eps)
         resumed = bool(coarse) and family in SWITCHED
-        start = (pf.solve(along[0].scene, grid, args.eps, start=along[0],
-                          options=dict(args.solver, pf_stage1='none')) if resumed else
-                 pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp')))
+        if resumed:
+            k = max((i for i, p in enumerate(coarse['points']) if p['index'] == 0), default=0)
+            start = pf.solve(along[k].scene, grid, args.eps, start=along[k],
+                             options=dict(args.solver, pf_stage1='none'))
+        else:
+            start = pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp'))
     except (RuntimeError, UsageError) as e:
         say(f"-- {family} c0 {c0:g}: no start ({e})")
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
@@ -215,7 +219,7 @@ def trace(family, c0, args, comm, say):
     shapes = [(start.nodes, start.phi, dict(start.attrs))]
     ends = [f"started where the {branch}'s corrector left it at v {where:.4f}"] if jumped else []
     if resumed:
-        ends.append(f"started from the first point of {args.coarse}'s branch at v {where:.4f}"
+        ends.append(f"started from the last stable point of {args.coarse}'s branch at v {where:.4f}"
                     + ('' if asymmetric(start) else ', which came back up-down symmetric'))
     switched = switch and not jumped
     if not start.converged:
