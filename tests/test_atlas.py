@@ -85,6 +85,12 @@ def test_events_and_continuations_follow_each_direction_from_the_start():
     assert atlas.events([start]) == ['']
 
 
+def test_an_adapted_switched_branch_resumes_at_the_last_point_of_index_0():
+    indices = [1, 0, 1, 0, 1]
+    assert atlas.last_stable([_point(0.9, 1.0, index=i) for i in indices]) == 3
+    assert atlas.last_stable([_point(0.9, 1.0, index=1)] * 3) == 0
+
+
 def test_a_branch_file_gives_back_the_branch(tmp_path):
     nodes = np.random.default_rng(0).random((5, 2))
     b = _linear('prolate', 0.5, 7.0, 10.0, vs=[0.95, 0.9])

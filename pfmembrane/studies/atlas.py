@@ -53,7 +53,7 @@ import warnings
 
 import numpy as np
 
-from pfmembrane.io.options import Params, UsageError
+from pfmembrane.io.options import HELP, Params, UsageError
 from pfmembrane.scenes import paper_spacing
 from pfmembrane.studies import launch
 
@@ -195,7 +195,7 @@ def trace(family, c0, args, comm, say):
         # to the bifurcation, can fall back to the branch it left at a smaller eps)
         resumed = bool(coarse) and family in SWITCHED
         if resumed:
-            k = max((i for i, p in enumerate(coarse['points']) if p['index'] == 0), default=0)
+            k = last_stable(coarse['points'])
             start = pf.solve(along[k].scene, grid, args.eps, start=along[k],
                              options=dict(args.solver, pf_stage1='none'))
         else:
@@ -263,6 +263,11 @@ def trace(family, c0, args, comm, say):
     return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min, points=points,
                 ends=ends, shapes=shapes, time=time.perf_counter() - t0,
                 bifurcation_v=where if switch else math.nan)
+
+
+def last_stable(points):
+    """The index of the last of a branch's points with stability index 0 (0 if none)."""
+    return max((i for i, p in enumerate(points) if p['index'] == 0), default=0)
 
 
 def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_MIN,
@@ -408,7 +413,8 @@ def write(branches, args, out, wall):
             f"k = 1; {args.np} MPI ranks in "
             f"{args.groups} group(s) on {os.cpu_count()} cores.")
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
-               f"--eps {args.eps:g} --nodes {args.nodes} --ds {args.ds:g} --steps {args.steps}"
+               f"--eps {args.eps:g}" + ('' if args.adapt else f" --nodes {args.nodes}")
+               + f" --ds {args.ds:g} --steps {args.steps}"
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
                + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
@@ -673,8 +679,8 @@ def main(argv=None):
                          'by CVT for 1 + F max |grad phi_h| over its points')
     ap.add_argument('--coarse', metavar='DIR', help='the atlas whose branches --adapt follows')
     ap.add_argument('--gamma', type=float, default=Params.gamma,
-                    help='max-ent locality of every grid (beta_a = gamma / h_a^2); graded '
-                         'grids want less than the uniform ones (runs/pears/README.md)')
+                    help=f"{HELP['gamma']} of every grid; graded grids want less than "
+                         "uniform ones (runs/pears/README.md)")
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
