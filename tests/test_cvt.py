@@ -298,3 +298,19 @@ def test_a_mirror_plane_frees_its_nodes_and_keeps_the_corners():
     h = nodesets.nodal_spacing(free, plane=0.0)
     lowest = free[plane & ~corners, 1] / h[plane & ~corners]
     assert 0.3 < np.median(lowest) < 0.7
+
+
+def test_the_axis_as_a_mirror_frees_its_nodes_and_keeps_the_corners():
+    # r = 0 as the axis of a basis even in r: held on it, its nodes keep their
+    # count where the refined nodes around them thin out.
+    nodes = jittered_lattice(20, 40)
+    axis = nodes[:, 0] == 0.0
+    free, _, _ = cvt.lloyd(nodes, BOX, band, axis=True)
+    corners = axis & ((nodes[:, 1] == 0.0) | (nodes[:, 1] == BOX[1]))
+    np.testing.assert_array_equal(free[corners], nodes[corners])
+    assert (free[axis & ~corners, 0] > 0.0).all()
+    # The nodes nearest to the axis sit about half a spacing from it
+    # (measured: median 0.48 h).
+    h = nodesets.nodal_spacing(free)
+    first = free[:, 0] < 0.75 * h
+    assert 0.3 < np.median(free[first, 0] / h[first]) < 0.7

@@ -143,6 +143,28 @@ def test_cells_tile_the_half_box_with_no_nodes_on_the_plane():
     np.testing.assert_array_equal(quadrature.cells(y, tri, plane), y[tri])
 
 
+def test_cells_tile_the_box_with_no_nodes_on_the_axis():
+    # Adapted nodes leave the axis (`cvt.lloyd`): without feet on it, the
+    # triangles next to it would be slivers from one corner to the other.
+    x = nodes.uniform(BOX, 800)
+    rng = np.random.default_rng(4)
+    off = (x[:, 0] == 0) & (x[:, 1] > 0) & (x[:, 1] < BOX[1])
+    x[off, 0] += rng.uniform(0.2, 0.5, off.sum()) * 0.06    # lift the axis's nodes
+    cells = quadrature.cells(x, quadrature.triangulate(x))
+    assert cells[:, :, 0].min() == 0.0
+    pts, w = quadrature.rule(cells, 4, axisymmetric=False)
+    for i, j in [(0, 0), (1, 2), (3, 1)]:
+        exact = BOX[0] ** (i + 1) / (i + 1) * BOX[1] ** (j + 1) / (j + 1)
+        assert abs(np.dot(w, pts[:, 0] ** i * pts[:, 1] ** j) - exact) < 1e-12 * exact
+    edges = np.linalg.norm(cells - np.roll(cells, 1, axis=1), axis=2).max(axis=1)
+    assert edges.max() < 3 * np.median(nodes.nodal_spacing(x))
+    # On a lattice, whose even rows start on the axis, the cells are the
+    # nodes' own Delaunay triangles.
+    y = nodes.uniform(BOX, 800)
+    tri = quadrature.triangulate(y)
+    np.testing.assert_array_equal(quadrature.cells(y, tri), y[tri])
+
+
 def test_spacing_near_the_mirrors_is_continuous_in_the_nodes():
     # Nodes and their images are cocircular in pairs; h_a must not depend on
     # which diagonal Qhull takes, so 1e-10 in the nodes gives ~1e-10 in h_a.

@@ -75,7 +75,7 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
     moved = None
     if comm.Get_rank() == 0:
         moved = cvt.lloyd(nodes - shift, (box[0], box[1] - z[0]), density,
-                          mirror=plane is not None)
+                          mirror=plane is not None, axis=True)
     new, iterations, movement = comm.bcast(moved, root=0)
     new = new + shift
     new_phi = transfer(nodes, phi, beta, cutoff, new, box, plane)

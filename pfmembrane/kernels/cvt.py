@@ -262,7 +262,7 @@ def _redistribute(nodes, box, density, area):
 
 
 def lloyd(nodes, box, density, max_iter=200, tol=1e-4, boundary_tol=1e-12,
-          mirror=False):
+          mirror=False, axis=False):
     """Relocate nodes to a density-weighted CVT of the box.
 
     A global redistribution (`_redistribute`) is tried first and kept only
@@ -299,12 +299,17 @@ def lloyd(nodes, box, density, max_iter=200, tol=1e-4, boundary_tol=1e-12,
         out: on the discocyte's grid O12 it ended 0.007 apart under rows
         0.027 away, and an alternating pattern of its nodal values became a
         near-null direction of the stage-2 Hessian.
+    axis : bool, optional
+        The edge ``r = 0`` is a mirror too (the axis of a solid of
+        revolution whose basis is even in r): its nodes, corners excepted,
+        leave it.  Held on it, the axis keeps its count where the refined
+        nodes around it thin out, with the same near-null direction.
 
     Returns
     -------
     nodes : ndarray, shape (N, 2)
         Relocated nodes; edge nodes lie exactly on their edge (but for a
-        `mirror`), corners are unchanged.  The result depends only on the input, bit for bit.
+        `mirror` or the `axis`), corners are unchanged.  The result depends only on the input, bit for bit.
     iterations : int
         Number of Lloyd steps taken.  Steps that would raise the CVT energy
         are not taken: the iteration goes on with plain Lloyd steps, and
@@ -337,7 +342,8 @@ def lloyd(nodes, box, density, max_iter=200, tol=1e-4, boundary_tol=1e-12,
         raise ValueError("nodes must lie in the box and include its corners")
     z[on[0], 0], z[on[1], 0], z[on[2], 1], z[on[3], 1] = 0.0, rb, 0.0, zb
     plane = on[2] & (on[0] | on[1]) if mirror else on[2]
-    fixed = np.stack([on[0] | on[1], plane | on[3]], axis=1)
+    held_axis = on[0] & (on[2] | on[3]) if axis else on[0]
+    fixed = np.stack([held_axis | on[1], plane | on[3]], axis=1)
 
     centroid, area, energy = _cells(z, box, density)
     if (area <= 0).any():

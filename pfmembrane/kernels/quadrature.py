@@ -37,29 +37,39 @@ def triangulate(nodes):
 
 def cells(nodes, triangles, plane=None):
     """Background cells (M x 3 x 2 vertex coordinates) that tile the nodes'
-    box: their Delaunay `triangles` (`triangulate`) or, with a mirror `plane`
-    (nodes in z >= plane) that not all nodes nearest to it lie on, the
-    triangles of the nodes and of the feet on it of the nodes whose Voronoi
-    cells meet it, so that they tile the half box also where no node lies on
-    the plane. The nodes' mirror images would do it too, but a node pair and
-    its images are always cocircular: which diagonal Qhull takes would then
-    change the quadrature with the last bits of the nodes. Not collective."""
-    feet = _feet(nodes, plane) if plane is not None else nodes[:0]
+    box: their Delaunay `triangles` (`triangulate`) or, where no node but its
+    two ends lies on a mirror (the axis r = 0, or a `plane` z = plane of nodes
+    in z >= plane: adapted nodes leave both, `cvt.lloyd`), the triangles of
+    the nodes and of the feet on the mirror of the nodes whose Voronoi cells
+    meet it, so that no sliver from end to end spans it. The nodes' mirror
+    images would do it too, but a node pair and its images are always
+    cocircular: which diagonal Qhull takes would then change the quadrature
+    with the last bits of the nodes. Not collective."""
+    feet = _feet(nodes, 0, 0.0)
+    if plane is not None:
+        feet = np.vstack([feet, _feet(nodes, 1, plane)])
     if len(feet) == 0:
         return nodes[triangles]
     nodes = np.vstack([nodes, feet])
     return nodes[triangulate(nodes)]
 
 
-def _feet(nodes, plane, tol=1e-12):
-    """(r, plane) for the nodes off the plane that are nearest to some point
-    (r, plane): |(r, plane) - a|^2 = r^2 - 2 r r_a + (r_a^2 + d_a^2), so these
-    are the vertices of the lower convex hull of (r_a, r_a^2 + d_a^2)."""
-    r, d = nodes[:, 0], nodes[:, 1] - plane
-    hull = ConvexHull(np.column_stack([r, r ** 2 + d ** 2]))
+def _feet(nodes, normal, at, tol=1e-12):
+    """The feet on the line x_normal = at, if no node but its two ends lies on
+    it, of the nodes nearest to some point of it: with s the coordinate along
+    the line and d the distance to it, |(s) - a|^2 = s^2 - 2 s s_a + (s_a^2 +
+    d_a^2), so these are the vertices of the lower convex hull of (s_a, s_a^2
+    + d_a^2)."""
+    s, d = nodes[:, 1 - normal], nodes[:, normal] - at
+    off = d > tol * max(1.0, abs(at))
+    if (~off).sum() > 2:
+        return nodes[:0]
+    hull = ConvexHull(np.column_stack([s, s ** 2 + d ** 2]))
     lower = np.unique(hull.simplices[hull.equations[:, 1] < 0])
-    lower = lower[d[lower] > tol * max(1.0, abs(plane))]
-    return np.column_stack([r[lower], np.full(len(lower), plane)])
+    lower = lower[off[lower]]
+    feet = np.empty((len(lower), 2))
+    feet[:, 1 - normal], feet[:, normal] = s[lower], at
+    return feet
 
 
 def _areas(v):
