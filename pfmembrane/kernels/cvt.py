@@ -38,7 +38,8 @@ node confined to the edge, so edge nodes follow the ``rho**(1/2)`` grading
 of their interior neighbours, where a separate 1D CVT of ``rho`` along the
 edge would grade them like ``rho**(1/3)``.  Each edge keeps its node
 count; the four corners are fixed.  A mirror edge (the plane of a half
-box) is not an edge of the solid: its nodes are interior ones.
+box, the axis of a basis even in r) is not an edge of the solid: its
+nodes are interior ones.
 
 Measurements quoted in this module use the box ``[0, 2] x [0, 4]``, the
 half circle ``d = |x - (0, 2)| - 1 = 0`` and ``rho = 1 + f (1 - phi**2)``
