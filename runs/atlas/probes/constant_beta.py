@@ -6,6 +6,8 @@ does not follow the grading."""
 import sys, time
 import numpy as np
 import pfmembrane as pf
+from pfmembrane.analysis import limit
+from pfmembrane.kernels.nodes import nodal_spacing
 from pfmembrane.parallel import discretization
 from pfmembrane.studies import atlas
 pf.api.petsc(sys.argv[:1])
@@ -21,7 +23,12 @@ def floored(nodes, smoothing, plane):
     return h, np.maximum(smoothed, np.quantile(smoothed, q))
 
 
-discretization.nodal_spacings = floored
+def locality(nodes, gamma, smoothing, plane=None):  # the level set's basis, the same
+    h = nodal_spacing(nodes, smoothing=smoothing, plane=plane)
+    return gamma / np.maximum(h, np.quantile(h, q)) ** 2
+
+
+discretization.nodal_spacings, limit.locality = floored, locality
 sc = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'], branch='stomatocyte', symmetric=False)
 grid = pf.Grid(sc, nodes, gamma=gamma)
 t = time.time()
