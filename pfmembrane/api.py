@@ -122,12 +122,14 @@ class Grid:
     Collective on `comm`. `gamma` is the max-ent locality (beta_a = gamma /
     h_a^2), `cutoff` the support cut-off, `quad_degree` the Gauss rule on the
     Delaunay triangles, `spacing_smoothing` the passes over h_a behind beta_a,
+    `spacing_floor` the quantile Q of the smoothed h_a below which beta_a stays
+    gamma / h_Q^2 (0: none; graded grids, `basis.spacing_and_locality`),
     `partition` the split of the nodes among the ranks (`parallel.partition`).
     """
 
     def __init__(self, scene, nodes, gamma=Params.gamma, cutoff=Params.cutoff,
                  quad_degree=Params.quad_degree, spacing_smoothing=Params.spacing_smoothing,
-                 partition=Params.partition, comm=None):
+                 spacing_floor=Params.spacing_floor, partition=Params.partition, comm=None):
         from pfmembrane.parallel.discretization import Grid as Discretization
         PETSc = petsc()
         if scene.box == 'auto':
@@ -135,7 +137,8 @@ class Grid:
         self.comm = _comm(comm)
         self.box, self.symmetric, self.plane = scene.box, scene.symmetric, scene.plane
         self.params = dict(gamma=gamma, cutoff=cutoff, quad_degree=quad_degree,
-                           spacing_smoothing=spacing_smoothing, partition=partition)
+                           spacing_smoothing=spacing_smoothing, spacing_floor=spacing_floor,
+                           partition=partition)
         self.adapt_info, self.adapt_f, self._transferred = None, 0.0, None
         t0 = time.perf_counter()
         stage = PETSc.Log.Stage('pfBasis')
@@ -143,7 +146,7 @@ class Grid:
         try:
             self.discrete = Discretization(self.comm, np.asarray(nodes, dtype=float), scene.box,
                                            gamma, cutoff, quad_degree, spacing_smoothing,
-                                           scene.plane, partition)
+                                           scene.plane, partition, spacing_floor)
             self.discrete.gram  # stage 2 always needs the Hessian
         finally:
             stage.pop()
@@ -224,7 +227,8 @@ class Result:
         a = self.attrs
         return dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
                     quad_degree=int(a.get('quad_degree', 4)),
-                    spacing_smoothing=int(a.get('spacing_smoothing', 0)))
+                    spacing_smoothing=int(a.get('spacing_smoothing', 0)),
+                    spacing_floor=float(a.get('spacing_floor', 0.0)))
 
     def locality(self, plane=None):
         """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box):
@@ -232,7 +236,8 @@ class Result:
         if self.grid is not None and self.grid.discrete.plane == plane:
             return self.grid.discrete.beta
         b = self.basis
-        return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane)
+        return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane,
+                        b['spacing_floor'])
 
     def checkpoint(self):
         return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
@@ -736,7 +741,8 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
                  symmetric=int(scene.symmetric), converged=int(converged),
                  wall_time=setup + time.perf_counter() - t0, n_procs=comm.getSize(),
                  cutoff=grid.params['cutoff'], quad_degree=grid.params['quad_degree'],
-                 spacing_smoothing=grid.params['spacing_smoothing'], radius=scene.radius,
+                 spacing_smoothing=grid.params['spacing_smoothing'],
+                 spacing_floor=grid.params['spacing_floor'], radius=scene.radius,
                  reduced_volume=scene.reduced_volume, branch=scene.branch,
                  under_resolved=int(under), eps_min=grid.eps_min, n_nodes=grid.n_nodes,
                  max_phi=max_phi,

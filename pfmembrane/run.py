@@ -49,7 +49,8 @@ def grid_of(p, scene, start, comm, cache):
     those nodes relocated by CVT; the basis parameters are the options'. A
     grid already built for the same nodes and parameters is reused."""
     params = dict(gamma=p.gamma, cutoff=p.cutoff, quad_degree=p.quad_degree,
-                  spacing_smoothing=p.spacing_smoothing, partition=p.partition)
+                  spacing_smoothing=p.spacing_smoothing, spacing_floor=p.spacing_floor,
+                  partition=p.partition)
     if start is not None and p.adapt:
         return api.adapt(start, p.adapt, comm=comm, **params)
     if start is not None:
@@ -76,7 +77,8 @@ def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=
     start, scene = start_of(p, comm, cache, start)
     print_fn(f"pfmembrane: {p.branch} eps={p.eps:g} k={p.k:g} c0={p.c0:g} R={p.radius:g} "
              f"v={p.reduced_volume:g} box={scene.box[0]:g}x{scene.box[1]:g} "
-             f"gamma={p.gamma:g} cutoff={p.cutoff:g} quad={p.quad_degree} "
+             f"gamma={p.gamma:g}{f' floor={p.spacing_floor:g}' if p.spacing_floor else ''} "
+             f"cutoff={p.cutoff:g} quad={p.quad_degree} "
              f"stage1={p.stage1} ranks={comm.getSize()}"
              f"{' half box (mirror z=' + format(scene.zc, 'g') + ')' if p.symmetric else ''}")
     grid = grid_of(p, scene, start, comm, cache)

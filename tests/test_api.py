@@ -167,3 +167,22 @@ def test_a_half_box_result_unfolds_into_a_full_box_start_on_a_symmetric_grid(com
     assert abs(out.energy - res.energy) < 1e-12 * res.energy
     assert np.abs(out.phi - full.phi).max() < 1e-10
     assert np.abs(out.phi[order[0]] - out.phi[order[1]]).max() < 1e-10
+
+
+def test_a_floored_grid_solves_and_its_result_carries_the_floor(solved, comm, tmp_path):
+    from pfmembrane.analysis import limit
+    grid = pf.adapt(solved, 10.0, comm=comm, spacing_floor=0.5)
+    unfloored = pf.Grid(SCENE, grid.nodes, comm=comm)
+    assert grid.params['spacing_floor'] == 0.5
+    beta = grid.discrete.beta
+    assert np.mean(beta == beta.max()) >= 0.5 and np.array_equal(
+        beta, np.minimum(unfloored.discrete.beta, beta.max()))
+    res = pf.solve(SCENE, grid, eps=EPS, start=solved)
+    assert res.converged and res.basis['spacing_floor'] == 0.5
+    res.save(tmp_path / 'floored.h5')
+    back = pf.read(tmp_path / 'floored.h5', comm=comm)
+    # the level set, a transfer and a regrid see the solve's basis, not the unfloored one
+    assert np.array_equal(back.locality(), beta)
+    assert np.array_equal(limit.PhaseField(back.checkpoint()).beta, beta)
+    assert pf.Grid.of(back, comm=comm).params == grid.params
+    assert abs(res.energy / solved.energy - 1) < 0.01

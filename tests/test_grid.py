@@ -185,3 +185,19 @@ def test_spacing_near_the_mirrors_is_continuous_in_the_nodes():
     away = (lat[:, 0] < BOX[0] - 0.2) & (lat[:, 1] < BOX[1] - 0.2)
     on = away & ((lat[:, 1] == plane) | (lat[:, 0] == 0.0))
     assert np.abs(h[on] / np.median(h[away]) - 1.0).max() < 0.02
+
+
+def test_a_spacing_floor_gives_the_finest_nodes_one_locality():
+    from pfmembrane.kernels.basis import locality, spacing_and_locality
+    x = nodes.uniform(BOX, 1500)
+    inner = nodes.edge_labels(x, BOX) == 0
+    x[inner] = x[inner] ** 1.5 / np.array(BOX) ** 0.5       # graded towards the corner
+    h, beta = spacing_and_locality(x, 0.8, 3)
+    assert np.array_equal(beta, 0.8 / nodes.nodal_spacing(x, smoothing=3) ** 2)
+    assert np.array_equal(h, nodes.nodal_spacing(x))            # the raw spacing
+    _, floored = spacing_and_locality(x, 0.8, 3, floor=0.3)
+    top = floored.max()
+    assert np.array_equal(floored, np.minimum(beta, top))       # only the finest change
+    assert abs(np.mean(floored == top) - 0.3) < 2 / len(x)       # and share one beta
+    assert np.ptp(beta[beta >= top]) > 0.5 * top                # which they did not before
+    assert np.array_equal(locality(x, 0.8, 3, floor=0.3), floored)

@@ -99,7 +99,7 @@ class PhaseField:
 
     Not collective.  The basis is the one of
     `pfmembrane.parallel.discretization.Grid`: beta_a = gamma / h_a^2 with the nodal
-    spacing h_a, the support cut-off of the checkpoint, and the nodes within
+    spacing h_a (floored, `basis.spacing_and_locality`), the support cut-off of the checkpoint, and the nodes within
     a support radius of the axis mirrored to r < 0 with their original's
     value, so that phi_h is even in r.
 
@@ -116,7 +116,8 @@ class PhaseField:
         self.cutoff = float(ckpt.attrs["cutoff"])
         self.nodes, self.phi = ckpt.nodes, np.asarray(ckpt.phi)
         self.beta = beta if beta is not None else locality(
-            ckpt.nodes, float(ckpt.attrs["gamma"]), int(ckpt.attrs.get("spacing_smoothing", 0)))
+            ckpt.nodes, float(ckpt.attrs["gamma"]), int(ckpt.attrs.get("spacing_smoothing", 0)),
+            floor=float(ckpt.attrs.get("spacing_floor", 0.0)))
 
     def __call__(self, points, gradient=False):
         """phi_h at `points`, shape (M, 2), in the hull of the mirrored nodes.

@@ -88,6 +88,7 @@ class Params(Settings, Targets):
     cutoff: float = 1e-6
     quad_degree: int = 4
     spacing_smoothing: int = 3
+    spacing_floor: float = 0.0
     partition: str = 'bisection'
     modes: int = -1
 
@@ -114,6 +115,8 @@ HELP = {
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
     'spacing_smoothing': 'smoothing passes over the nodal spacing h_a behind beta_a (0: raw h_a)',
+    'spacing_floor': 'quantile Q of the smoothed h_a below which beta_a stays gamma / h_Q^2: one '
+                     'locality over the finest nodes of a graded grid (0: none)',
     'partition': 'nodes among the ranks: bisection (coordinate; the same in every run) | '
                  'a MatPartitioning type (ptscotch: graph, changes from run to run)',
     'modes': 'stability of the converged shape against psi(r,z) cos(m theta), m = 0..M: the '
@@ -324,6 +327,7 @@ def validate(p):
     if p.adapt and not p.restart:
         raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
+    _require(0.0 <= p.spacing_floor < 1.0, 'spacing_floor', 'in [0, 1)', p.spacing_floor)
     _require(-1 <= p.modes <= 50, 'modes', 'in -1..50', p.modes)
     _require(p.partition in PARTITIONS, 'partition', f"one of {', '.join(PARTITIONS)}",
              p.partition)

@@ -10,8 +10,7 @@ import scipy.sparse as sp
 
 from pfmembrane.kernels import maxent, nodes as nodesets, quadrature
 from pfmembrane.kernels.gram import Gram
-from pfmembrane.kernels.basis import folded_basis
-from pfmembrane.kernels.nodes import nodal_spacings
+from pfmembrane.kernels.basis import folded_basis, spacing_and_locality
 from pfmembrane.parallel.partition import Layout
 
 POINT_CHUNK = 16384  # quadrature points per max-ent evaluation: bounds the working memory
@@ -42,18 +41,18 @@ class Grid:
     Collective. Parameters are plain values: `box` = (Rb, Zb), `gamma` the
     locality, `cutoff` the support cut-off exp(-beta_a d^2) >= cutoff, `degree`
     the Gauss rule on the Delaunay triangles, `smoothing` the passes over the
-    nodal spacing behind beta_a. `h` is the unsmoothed spacing. With a mirror
+    nodal spacing behind beta_a, `floor` its quantile below which beta_a stays
+    constant (`basis.spacing_and_locality`). `h` is the unsmoothed spacing. With a mirror
     `plane` the nodes fill the half box z >= plane, phi is even across it and
     the quadrature weights count both halves, so integrals are full-box ones.
     """
 
     def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0,
-                 plane=None, partition='bisection'):
+                 plane=None, partition='bisection', floor=0.0):
         self.comm, self.nodes, self.box = comm, nodes, tuple(box)
         self.gamma, self.cutoff, self.degree = gamma, cutoff, degree
         self.plane = plane
-        self.h, smoothed = nodal_spacings(nodes, smoothing, plane)
-        self.beta = gamma / smoothed ** 2  # `locality`, from the triangulation h needs too
+        self.h, self.beta = spacing_and_locality(nodes, gamma, smoothing, plane, floor)
         self.dirichlet = nodesets.dirichlet_mask(nodes, box)
         self.triangles = quadrature.triangulate(nodes)
         self.layout = Layout(comm, nodes, ~self.dirichlet, self.triangles,

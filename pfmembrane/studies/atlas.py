@@ -34,7 +34,8 @@ the grouping.
 
 `--adapt F --coarse DIR` follows each branch of the atlas DIR again at --eps on that branch's
 nodes relocated by CVT for 1 + F max |grad phi_h| over its points (`pf.adapt`), with max-ent
-locality --gamma (graded grids want less than uniform ones: runs/pears/README.md). A switched
+locality --gamma (graded grids want less than uniform ones: runs/pears/README.md) and
+--floor Q (one locality over the finest nodes, `pf.Grid`'s spacing_floor). A switched
 family does not retrace its route on these nodes: it starts from its coarse branch's last
 stable point (index 0), by Newton alone, and is followed both ways in v.
 
@@ -173,7 +174,8 @@ def trace(family, c0, args, comm, say):
     import pfmembrane as pf
     branch, half, first = FAMILIES[family]
     t0 = time.perf_counter()
-    described = dict(family=family, c0=c0, eps=args.eps, gamma=args.gamma, half=half,
+    basis = dict(gamma=args.gamma, spacing_floor=args.floor)
+    described = dict(family=family, c0=c0, eps=args.eps, **basis, half=half,
                      box=(math.nan, math.nan), nodes=0, eps_min=math.nan, points=[], shapes=[])
     try:  # the same on every rank of the group: no collective call is left waiting
         coarse = coarse_branch(args.coarse, family, c0) if args.adapt else None
@@ -182,11 +184,10 @@ def trace(family, c0, args, comm, say):
                          box=box, branch=branch, symmetric=half)
         if coarse:
             along = [pf.Result(*shape) for shape in coarse['shapes']]
-            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:],
-                            gamma=args.gamma)
+            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:], **basis)
         else:
             grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm,
-                                   gamma=args.gamma)
+                                   **basis)
         say(f"-- {family} c0 {c0:g}: box {box[0]:g}x{box[1]:g}{' (half)' if half else ''}, "
             f"{grid!r}")
         t1 = time.perf_counter()
@@ -409,7 +410,8 @@ def write(branches, args, out, wall):
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
              f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
              f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
-    head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}, R = {RADIUS:g}, "
+    head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}"
+            f"{f' (spacing floored at its {args.floor:g}-quantile)' if args.floor else ''}, R = {RADIUS:g}, "
             f"k = 1; {args.np} MPI ranks in "
             f"{args.groups} group(s) on {os.cpu_count()} cores.")
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
@@ -419,6 +421,7 @@ def write(branches, args, out, wall):
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
                + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
                + (f" --gamma {args.gamma:g}" if args.gamma != Params.gamma else '')
+               + (f" --floor {args.floor:g}" if args.floor else '')
                + f" --out {args.out}`")
     lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
              "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
@@ -681,6 +684,8 @@ def main(argv=None):
     ap.add_argument('--gamma', type=float, default=Params.gamma,
                     help=f"{HELP['gamma']} of every grid; graded grids want less than "
                          "uniform ones (runs/pears/README.md)")
+    ap.add_argument('--floor', type=float, default=Params.spacing_floor, metavar='Q',
+                    help=f"{HELP['spacing_floor']}, of every grid")
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
