@@ -205,7 +205,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
     rss_start = _peak_rss_mb()
     seconds = {'nodes': 0.0, 'spacing': 0.0, 'partition': 0.0, 'basis': 0.0}
     sizes = []  # (support entries, points) of every basis evaluation
-    watched = [(discretization, 'nodal_spacings', 'spacing'),
+    watched = [(discretization, 'spacing_and_locality', 'spacing'),
                (quadrature, 'triangulate', 'partition'),
                (discretization, 'Layout', 'partition'),
                (quadrature, 'rule', 'partition'),

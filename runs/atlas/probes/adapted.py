@@ -1,14 +1,13 @@
 """adapted.py F GAMMA [Q [ORDER]]: the stomatocyte at v 0.62, c0 0, eps 0.01 on the coarse
 stomatocyte branch's nodes relocated for F. Q > 0: beta_a = GAMMA / max(h_a, h_Q)^2 (h_a
 the smoothed nodal spacing, h_Q its Q-quantile) instead of GAMMA / h_a^2, one locality
-over the finest nodes, the interfaces' band. ORDER 2 needs quadratic.patch applied."""
+over the finest nodes, the interfaces' band (`pf.Grid`'s spacing_floor). ORDER 2 needs
+quadratic.patch applied."""
 import sys, time
 import numpy as np
 import pfmembrane as pf
-from pfmembrane.analysis import limit
 from pfmembrane.kernels import maxent
-from pfmembrane.kernels.nodes import nodal_spacing
-from pfmembrane.parallel import discretization
+from pfmembrane.kernels.nodes import nodal_spacings
 from pfmembrane.studies import atlas
 pf.api.petsc(sys.argv[:1])
 f, gamma = float(sys.argv[1]), float(sys.argv[2])
@@ -16,26 +15,11 @@ q, order = (float(sys.argv[3]) if len(sys.argv) > 3 else 0.0), (int(sys.argv[4])
 coarse = atlas.load(atlas.branch_path('runs/atlas/adapted_stomatocyte/coarse', 'stomatocyte', 0.0))
 along = [pf.Result(*s) for s in coarse['shapes']]
 nodes = pf.adapt(along[0], f, along=along[1:], gamma=gamma).nodes
-spacings = discretization.nodal_spacings
-
-
-def floored(nodes, smoothing, plane):
-    h, smoothed = spacings(nodes, smoothing, plane)
-    return h, np.maximum(smoothed, np.quantile(smoothed, q))
-
-
-def locality(nodes, gamma, smoothing, plane=None):
-    h = nodal_spacing(nodes, smoothing=smoothing, plane=plane)
-    return gamma / np.maximum(h, np.quantile(h, q)) ** 2
-
-
-# The solve's basis and the level set's: the library computes beta_a in both places.
-discretization.nodal_spacings, limit.locality = floored, locality
 maxent.ORDER = order  # the solve's basis only; the CVT's raster and transfer keep max-ent
 sc = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'], branch='stomatocyte', symmetric=False)
-grid = pf.Grid(sc, nodes, gamma=gamma)
+grid = pf.Grid(sc, nodes, gamma=gamma, spacing_floor=q)
 pf.api.petsc().Sys.Print('smoothed spacing, quantiles 0 .05 .5 .75 .95 1:',
-                         np.quantile(spacings(nodes, 3, None)[1], [0, 0.05, 0.5, 0.75, 0.95, 1]))
+                         np.quantile(nodal_spacings(nodes, 3, None)[1], [0, 0.05, 0.5, 0.75, 0.95, 1]))
 t = time.time()
 r = pf.solve(sc, grid, 0.01, options={'pf_start': 'sharp', 'pf_stage1_rtol': 1e-5})
 pf.api.petsc().Sys.Print(f, gamma, q, order, grid.n_nodes, r.energy, r.attrs['level_set_energy'],
