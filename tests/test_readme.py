@@ -74,3 +74,9 @@ def test_the_python_quick_start_prints_the_command_line_energy(command_lines, sc
         assert energy == pytest.approx(float(f.attrs['energy']), rel=1e-10)
     assert (scratch / 'runs' / 'quickstart.xdmf').exists()
     assert re.search(r'set-up 0\.0 s', done.stdout)  # the second solve reused the grid
+
+
+def test_the_options_table_lists_every_application_option():
+    from pfmembrane.io.options import HELP
+    listed = re.findall(r'^\| `-pf_(\w+)` \|', readme(), flags=re.M)
+    assert sorted(listed) == sorted(HELP)
