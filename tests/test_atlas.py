@@ -174,7 +174,7 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
     """Two branches (prolate and oblate at c0 1), up to 5 points each, on two groups of one
     rank and on one rank: the same points; the figures and tables are written, a second
     run reuses the branch files, and the branches follow at a smaller eps on their nodes
-    adapted along them."""
+    adapted along them, with the basis parameters given."""
     def atlas(*args):
         done = subprocess.run([sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL, *args,
                                '--np', '1'], cwd=root, env=child_env, capture_output=True,
@@ -182,6 +182,7 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
         assert done.returncode == 0, done.stderr[-2000:]
         return done.stdout
 
+    from pfmembrane.studies.atlas import branch_path, load
     one_dir, two_dir, _ = on_groups('pfmembrane.studies.atlas', *SMALL)
     one, two = _numbers(one_dir), _numbers(two_dir)
     assert len(one) == 2 and all(len(b) >= 4 for b in one)
@@ -192,11 +193,14 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
     _same(_numbers(one_dir), one, rtol=0.0)
     # the same branches at a smaller eps, each on its coarse branch's nodes adapted by CVT
     adapted = atlas('--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir), '--steps', '2',
-                    '--gamma', '0.7', '--out', str(one_dir / 'adapted'))
+                    '--gamma', '0.7', '--floor', '0.3', '--out', str(one_dir / 'adapted'))
     assert adapted.count('adapt: CVT f=10 of the result and ') == 2
     with open(one_dir / 'atlas.json') as f, open(one_dir / 'adapted' / 'atlas.json') as g:
         coarse, fine = json.load(f)['branches'], json.load(g)['branches']
     for c, b in zip(coarse, fine):
         assert b['nodes'] == c['nodes'] and b['box'] == c['box'] and b['eps_min'] < 0.05
         assert (c['eps'], b['eps']) == (0.06, 0.05) and (c['gamma'], b['gamma']) == (0.8, 0.7)
+        assert (c['spacing_floor'], b['spacing_floor']) == (0.0, 0.3)
+        solved = load(branch_path(one_dir / 'adapted', b['family'], b['c0']))
+        assert {s[2]['spacing_floor'] for s in solved['shapes']} == {0.3}  # the grids' own
         assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])
