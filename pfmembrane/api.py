@@ -224,11 +224,7 @@ class Result:
     @property
     def basis(self):
         """The basis parameters it was solved with (`Grid`'s keywords)."""
-        a = self.attrs
-        return dict(gamma=float(a['gamma']), cutoff=float(a.get('cutoff', 1e-6)),
-                    quad_degree=int(a.get('quad_degree', 4)),
-                    spacing_smoothing=int(a.get('spacing_smoothing', 0)),
-                    spacing_floor=float(a.get('spacing_floor', 0.0)))
+        return checkpoint.basis(self.attrs)
 
     def locality(self, plane=None):
         """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box):

@@ -98,26 +98,27 @@ class PhaseField:
     """phi_h = sum_a p_a(x) phi_a of a checkpoint, with the solver's basis.
 
     Not collective.  The basis is the one of
-    `pfmembrane.parallel.discretization.Grid`: beta_a = gamma / h_a^2 with the nodal
-    spacing h_a (floored, `basis.spacing_and_locality`), the support cut-off of the checkpoint, and the nodes within
-    a support radius of the axis mirrored to r < 0 with their original's
+    `pfmembrane.parallel.discretization.Grid`: the locality beta_a of the
+    checkpoint's basis parameters (`kernels.basis.spacing_and_locality`,
+    `io.checkpoint.basis`), its support cut-off, and the nodes within a
+    support radius of the axis mirrored to r < 0 with their original's
     value, so that phi_h is even in r.
 
     Parameters
     ----------
     ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
-        Needs ``nodes``, ``phi`` and ``attrs['gamma']``, ``attrs['cutoff']``.
+        Needs ``nodes``, ``phi`` and ``attrs['gamma']``.
     beta : ndarray, optional
         The locality of these nodes, if the caller has it (another field
         on the same nodes): the nodal spacing is the costly part.
     """
 
     def __init__(self, ckpt, beta=None):
-        self.cutoff = float(ckpt.attrs["cutoff"])
+        b = checkpoint.basis(ckpt.attrs)
+        self.cutoff = b["cutoff"]
         self.nodes, self.phi = ckpt.nodes, np.asarray(ckpt.phi)
         self.beta = beta if beta is not None else locality(
-            ckpt.nodes, float(ckpt.attrs["gamma"]), int(ckpt.attrs.get("spacing_smoothing", 0)),
-            floor=float(ckpt.attrs.get("spacing_floor", 0.0)))
+            ckpt.nodes, b["gamma"], b["spacing_smoothing"], floor=b["spacing_floor"])
 
     def __call__(self, points, gradient=False):
         """phi_h at `points`, shape (M, 2), in the hull of the mirrored nodes.

@@ -25,7 +25,7 @@ import scipy.spatial
 from pfmembrane.kernels.nodes import unfold
 
 __all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
-           "read", "write_xdmf"]
+           "read", "write_xdmf", "basis"]
 
 SCHEMA = "pfmembrane-checkpoint"
 VERSION = 1
@@ -82,6 +82,15 @@ class Checkpoint:
             return self
         nodes, phi = unfold(self.nodes, self.phi, 0.5 * self.box[1])
         return Checkpoint(nodes, phi, {**self.attrs, "symmetric": 0}, self.datasets)
+
+
+def basis(attrs):
+    """The max-ent basis parameters of a checkpoint's attributes (`api.Grid`'s
+    keywords); files written before a parameter existed get its old value."""
+    return dict(gamma=float(attrs['gamma']), cutoff=float(attrs.get('cutoff', 1e-6)),
+                quad_degree=int(attrs.get('quad_degree', 4)),
+                spacing_smoothing=int(attrs.get('spacing_smoothing', 0)),
+                spacing_floor=float(attrs.get('spacing_floor', 0.0)))
 
 
 def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):

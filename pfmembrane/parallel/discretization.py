@@ -42,9 +42,10 @@ class Grid:
     locality, `cutoff` the support cut-off exp(-beta_a d^2) >= cutoff, `degree`
     the Gauss rule on the Delaunay triangles, `smoothing` the passes over the
     nodal spacing behind beta_a, `floor` its quantile below which beta_a stays
-    constant (`basis.spacing_and_locality`). `h` is the unsmoothed spacing. With a mirror
-    `plane` the nodes fill the half box z >= plane, phi is even across it and
-    the quadrature weights count both halves, so integrals are full-box ones.
+    constant (`basis.spacing_and_locality`). `h` is the unsmoothed spacing. With
+    a mirror `plane` the nodes fill the half box z >= plane, phi is even across
+    it and the quadrature weights count both halves, so integrals are full-box
+    ones.
     """
 
     def __init__(self, comm, nodes, box, gamma=0.8, cutoff=1e-6, degree=4, smoothing=0,

@@ -410,8 +410,8 @@ def write(branches, args, out, wall):
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
              f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
              f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
-    head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}"
-            f"{f' (spacing floored at its {args.floor:g}-quantile)' if args.floor else ''}, R = {RADIUS:g}, "
+    floor = f" (spacing floored at its {args.floor:g}-quantile)" if args.floor else ''
+    head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}{floor}, R = {RADIUS:g}, "
             f"k = 1; {args.np} MPI ranks in "
             f"{args.groups} group(s) on {os.cpu_count()} cores.")
     command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "

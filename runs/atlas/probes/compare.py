@@ -28,9 +28,11 @@ for path in sys.argv[2:]:
     # the other branch's stable stretch, one value per v, between its index changes
     mine = sorted((p for p in pts if p['index'] == 0), key=lambda p: p['v'])
     v = np.array([p['v'] for p in mine])
+    if not np.all(np.diff(v) > 0):
+        sys.exit(f"{path}: the points of index 0 are not one stretch in v")
     print("| v | dE | d level | d nu_A | d nu_V |\n|---|---|---|---|---|")
     for p in stable:
-        if not v[0] <= p['v'] <= v[-1] or not np.all(np.diff(v) > 0):
+        if not v[0] <= p['v'] <= v[-1]:
             continue
         d = [np.interp(p['v'], v, [q[k] for q in mine]) - p[k]
              for k in ('E', 'level', 'nu_A', 'nu_V')]

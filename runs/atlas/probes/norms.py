@@ -1,6 +1,7 @@
-"""norms.py BRANCH.h5: between consecutive points of a branch, the RMS change of the
-nodal values (the continuation's arclength norm) against the RMS change of phi_h on a
-raster of the box: how much of a step the nodal values take that the field does not show."""
+"""norms.py BRANCH.h5: the largest and the RMS nodal value of a branch's first point and,
+between its first six points, the RMS change of the nodal values (the continuation's
+arclength norm) against the RMS change of phi_h on a raster of the box: how much of a step
+the nodal values take that the field does not show."""
 import sys
 
 import numpy as np
@@ -16,7 +17,9 @@ r, z = np.meshgrid(np.linspace(0, box[0], 120), np.linspace(0, box[1], 210))
 points = np.column_stack([r.ravel(), z.ravel()])
 beta = shapes[0].locality()
 fields = [limit.PhaseField(s.checkpoint(), beta)(points) for s in shapes[:6]]
-print(f"{sys.argv[1]}: {len(shapes[0].nodes)} nodes, basis {shapes[0].basis}")
+phi = shapes[0].phi
+print(f"{sys.argv[1]}: {len(phi)} nodes, basis {shapes[0].basis}; nodal values: largest "
+      f"{np.abs(phi).max():.4g}, RMS {np.sqrt(np.mean(phi ** 2)):.3g}")
 print("| v | v' | nodal RMS change | phi_h RMS change | ratio |\n|---|---|---|---|---|")
 for k in range(1, len(fields)):
     a, c = shapes[k - 1], shapes[k]
