@@ -139,7 +139,7 @@ class Grid:
         self.params = dict(gamma=gamma, cutoff=cutoff, quad_degree=quad_degree,
                            spacing_smoothing=spacing_smoothing, spacing_floor=spacing_floor,
                            partition=partition)
-        self.adapt_info, self.adapt_f, self._transferred = None, 0.0, None
+        self.adapt_info, self.adapt_f, self.adapt_band, self._transferred = None, 0.0, 0.0, None
         t0 = time.perf_counter()
         stage = PETSc.Log.Stage('pfBasis')
         stage.push()
@@ -272,13 +272,15 @@ def read(path, comm=None, expect_box=None):
     return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)
 
 
-def adapt(result, f, comm=None, along=(), **grid_params):
+def adapt(result, f, comm=None, along=(), band=0.0, **grid_params):
     """A grid of as many nodes as `result`'s, relocated by CVT for the density
     1 + f |grad phi_h| (paper Section 4.2), with its basis parameters unless
     given. A solve on it started from `result` uses phi_h transferred to the
     new nodes. `along`: results on `result`'s nodes (the points of a branch)
     whose interfaces the grid follows too, by the largest |grad phi_h| of
-    them all. Collective."""
+    them all. `band` > 0: |grad phi_h| replaced by its largest value within
+    that distance, so the nodes are evenly spaced across the interfaces and
+    graded only where phi_h is near +-1. Collective."""
     PETSc = petsc()
     comm = _comm(comm if comm is not None else
                  (result.grid.comm if result.grid is not None else None))
@@ -291,16 +293,19 @@ def adapt(result, f, comm=None, along=(), **grid_params):
         xy, phi, info = adaptivity.relocate(comm.tompi4py(), result.nodes, result.phi,
                                             scene.box, result.locality(scene.plane),
                                             basis['cutoff'], f, scene.plane,
-                                            np.array([r.phi for r in along]) if along else None)
+                                            np.array([r.phi for r in along]) if along else None,
+                                            band)
     finally:
         stage.pop()
     of = (result.path or 'the result') + (f" and {len(along)} more" if along else '')
-    PETSc.Sys.Print(f"adapt: CVT f={f:g} of {of}: {info['iterations']} "
+    PETSc.Sys.Print(f"adapt: CVT f={f:g}{f' band={band:g}' if band else ''} of {of}: "
+                    f"{info['iterations']} "
                     f"Lloyd steps (movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g}"
                     f" -> {info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
                     f"{info['time']:.2f} s", comm=comm)
     grid = Grid(scene, xy, **{**basis, **grid_params}, comm=comm)
-    grid.adapt_info, grid.adapt_f, grid._transferred = info, float(f), (result, phi)
+    grid.adapt_info, grid._transferred = info, (result, phi)
+    grid.adapt_f, grid.adapt_band = float(f), float(band)
     return grid
 
 
@@ -727,8 +732,9 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
     mpi = comm.tompi4py()
     converged, message, status, vals, stages = state
     setup = grid.setup_time if grid._setup_pending else 0.0
-    adapt_f, adapt_time = ((grid.adapt_f, grid.adapt_info['time'])
-                           if grid._setup_pending and grid.adapt_info else (0.0, np.nan))
+    adapt_f, adapt_band, adapt_time = (
+        (grid.adapt_f, grid.adapt_band, grid.adapt_info['time'])
+        if grid._setup_pending and grid.adapt_info else (0.0, 0.0, np.nan))
     grid._setup_pending = False
     nu = solver.nu
     attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=eps,
@@ -744,7 +750,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
                  max_phi=max_phi,
                  stage1_iterations=solver.stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=solver.stats.get('stage2', {}).get('iterations', -1),
-                 factorizations=solver.factorizations, adapt=adapt_f,
+                 factorizations=solver.factorizations, adapt=adapt_f, adapt_band=adapt_band,
                  parent=start.path if start is not None else '',
                  start_topology=start.attrs.get('topology', '') if start is not None else '',
                  time_setup=setup, time_adapt=adapt_time,

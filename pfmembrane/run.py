@@ -52,7 +52,7 @@ def grid_of(p, scene, start, comm, cache):
                   spacing_smoothing=p.spacing_smoothing, spacing_floor=p.spacing_floor,
                   partition=p.partition)
     if start is not None and p.adapt:
-        return api.adapt(start, p.adapt, comm=comm, **params)
+        return api.adapt(start, p.adapt, comm=comm, band=p.adapt_band, **params)
     if start is not None:
         if start.grid is not None and start.grid.params == params and start.grid.fits(scene):
             return start.grid

@@ -193,8 +193,9 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
     _same(_numbers(one_dir), one, rtol=0.0)
     # the same branches at a smaller eps, each on its coarse branch's nodes adapted by CVT
     adapted = atlas('--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir), '--steps', '2',
-                    '--gamma', '0.7', '--floor', '0.3', '--out', str(one_dir / 'adapted'))
-    assert adapted.count('adapt: CVT f=10 of the result and ') == 2
+                    '--gamma', '0.7', '--floor', '0.3', '--band', '0.1',
+                    '--out', str(one_dir / 'adapted'))
+    assert adapted.count('adapt: CVT f=10 band=0.1 of the result and ') == 2
     with open(one_dir / 'atlas.json') as f, open(one_dir / 'adapted' / 'atlas.json') as g:
         coarse, fine = json.load(f)['branches'], json.load(g)['branches']
     for c, b in zip(coarse, fine):
@@ -203,4 +204,5 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
         assert (c['spacing_floor'], b['spacing_floor']) == (0.0, 0.3)
         solved = load(branch_path(one_dir / 'adapted', b['family'], b['c0']))
         assert {s[2]['spacing_floor'] for s in solved['shapes']} == {0.3}  # the grids' own
+        assert solved['shapes'][0][2]['adapt_band'] == 0.1
         assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])

@@ -35,6 +35,7 @@ BAD_INPUT = {
     'branch': ([*BASE, '-pf_branch', 'cylinder'], "unknown shape 'cylinder'"),
     'box': ([*BASE, '-pf_box', '0.5,0.6'], 'cannot hold the oblate vesicle'),
     'nodes': ([*BASE, '-pf_nodes', '50'], 'too few'),
+    'band': ([*BASE, '-pf_adapt_band', '0.1'], '-pf_adapt_band needs -pf_adapt'),
     'partition': ([*BASE, '-pf_partition', 'metis'], '-pf_partition must be one of bisection'),
     'unresolved': ([*BASE, '-pf_eps', '0.03'], 'below what this grid resolves'),
     'typo': ([*BASE, '-pf_epss', '0.03'], "unknown option '-pf_epss' (did you mean -pf_eps?)"),
@@ -160,13 +161,13 @@ def test_adapted_restart_at_a_smaller_eps(runs, pfm):
     d, res = runs
     path = str(d / 'adapted.h5')
     out = pfm('-options_file', 'options/discocyte.opts', *SMALL, '-pf_restart', res[2],
-              '-pf_adapt', '10', '-pf_eps', '0.05', '-pf_output', path)
+              '-pf_adapt', '10', '-pf_adapt_band', '0.1', '-pf_eps', '0.05', '-pf_output', path)
     assert out.returncode == 0, out.stderr
-    assert 'adapt: CVT f=10' in out.stdout
+    assert 'adapt: CVT f=10 band=0.1' in out.stdout
     a, _ = _energy(path)
     start = _energy(res[2])[0]
     assert a['converged'] == 1 and a['eps'] == 0.05
-    assert a['n_nodes'] == start['n_nodes']
+    assert (a['adapt'], a['adapt_band']) == (10.0, 0.1) and a['n_nodes'] == start['n_nodes']
     assert 0.0 < a['time_adapt'] < a['time_setup']
     assert a['energy'] < start['energy']  # a thinner interface, the sharp limit below
 

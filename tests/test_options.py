@@ -70,6 +70,7 @@ def assert_sane(p):
     assert p.nodes >= options.MIN_NODES or p.restart
     assert 0 < p.cutoff < 1 and 0 < p.stage1_rtol < 1 and 0 < p.stage2_rtol < 1
     assert 0 <= p.spacing_floor < 1
+    assert p.adapt_band >= 0 and (p.adapt or not p.adapt_band)
     a, c = spheroid_axes(p.area, p.volume, p.branch)
     assert a + 3 * p.eps <= p.box[0] and c + 3 * p.eps <= 0.5 * p.box[1]
 

@@ -84,6 +84,7 @@ class Params(Settings, Targets):
     gamma: float = 0.8
     restart: str = ''
     adapt: float = 0.0
+    adapt_band: float = 0.0
     output: str = ''
     cutoff: float = 1e-6
     quad_degree: int = 4
@@ -111,6 +112,8 @@ HELP = {
     'gamma': 'max-ent locality gamma (beta_a = gamma / h_a^2)',
     'restart': 'checkpoint to start from (its nodes and phi)',
     'adapt': 'CVT density amplification f: adapt the nodes to the start phi (0: no)',
+    'adapt_band': 'width w: the CVT density takes the largest |grad phi_h| within w, so the '
+                  'nodes are evenly spaced across the interface (0: none)',
     'output': 'checkpoint path (default runs/<branch>_eps<eps>.h5)',
     'cutoff': 'max-ent support cut-off: node a is used where exp(-beta_a d^2) >= cutoff',
     'quad_degree': 'Gauss rule degree on the Delaunay triangles: 1 | 2 | 4 | 5',
@@ -326,6 +329,9 @@ def validate(p):
     _require(p.adapt >= 0, 'adapt', '>= 0', p.adapt)
     if p.adapt and not p.restart:
         raise UsageError("-pf_adapt needs -pf_restart: the nodes are adapted to a solved phi")
+    _require(p.adapt_band >= 0, 'adapt_band', '>= 0', p.adapt_band)
+    if p.adapt_band and not p.adapt:
+        raise UsageError("-pf_adapt_band needs -pf_adapt: it shapes the CVT density")
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     _require(0.0 <= p.spacing_floor < 1.0, 'spacing_floor', 'in [0, 1)', p.spacing_floor)
     _require(-1 <= p.modes <= 50, 'modes', 'in -1..50', p.modes)

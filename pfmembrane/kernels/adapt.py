@@ -1,5 +1,8 @@
 """Node adaptivity (paper Section 4.2, Appendix B): CVT relocation of the nodes
 for rho = 1 + f |grad phi_h| of a solved field, and transfer of phi_h to them.
+With a band w, |grad phi_h| is first replaced by its largest value within w,
+so the density is flat across the interface and the nodes grade only where
+phi_h is near +-1.
 
 The density is tabulated once on a raster finer than the old grid's smallest
 spacing (the ranks share the max-ent evaluations), then interpolated
@@ -9,7 +12,7 @@ broadcast, so the new grid does not depend on the number of ranks.
 import time
 
 import numpy as np
-from scipy.ndimage import map_coordinates
+from scipy.ndimage import map_coordinates, maximum_filter
 
 from pfmembrane.kernels import cvt, maxent
 from pfmembrane.kernels.basis import folded_basis
@@ -48,10 +51,23 @@ def gradient_raster(comm, nodes, phi, box, beta, cutoff, h, plane=None):
     return r, z, np.vstack(rows)
 
 
-def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
+def dilate(values, r, z, band):
+    """The largest of the raster `values` (rows z, columns r) within a distance
+    `band` of each raster point. Max-ent's Laplacian errs where the spacing changes
+    (runs/atlas/notes.md): a flat density keeps that out of the interface."""
+    if band <= 0:
+        return values
+    dr, dz = r[1] - r[0], z[1] - z[0]
+    kr, kz = int(np.ceil(band / dr)), int(np.ceil(band / dz))
+    y, x = np.mgrid[-kz:kz + 1, -kr:kr + 1]
+    return maximum_filter(values, footprint=np.hypot(x * dr, y * dz) <= band)
+
+
+def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None, band=0.0):
     """CVT nodes for rho = 1 + f |grad phi_h| and phi_h transferred to them;
     with `along` (K, N), fields on the same nodes such as the other points of
-    a branch, rho = 1 + f max |grad phi_h| over `phi` and them.
+    a branch, rho = 1 + f max |grad phi_h| over `phi` and them; with `band`
+    > 0, rho = 1 + f max of that within `band` (`dilate`).
 
     Collective (`comm` is an mpi4py communicator). `phi` holds the values at
     every node, Dirichlet nodes included, and `beta` the locality of its
@@ -64,6 +80,7 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None):
     fields = phi if along is None else np.vstack([phi, along])
     h = nodal_spacing(nodes, plane=plane)
     r, z, grad = gradient_raster(comm, nodes, fields, box, beta, cutoff, h, plane)
+    grad = dilate(grad, r, z, band)
     t_raster = time.perf_counter() - t0
     # The tessellation works in [0, Rb] x [0, Zb - z0].
     shift = np.array([0.0, z[0]])

@@ -2,7 +2,7 @@
 
     python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
         [--families prolate oblate stomatocyte pear] [--c0 X ...] [--ds 0.05] [--steps 120]
-        [--box Rb,Zb] [--gamma 0.8] [--adapt F --coarse DIR] [--out runs/atlas] [--force]
+        [--box Rb,Zb] [--gamma 0.8] [--adapt F --coarse DIR [--band W]] [--out runs/atlas] [--force]
         [-- SOLVER OPTIONS]
     python -m pfmembrane.studies.atlas --plot runs/atlas
     python -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/stomatocyte --out DIR
@@ -34,8 +34,9 @@ the grouping.
 
 `--adapt F --coarse DIR` follows each branch of the atlas DIR again at --eps on that branch's
 nodes relocated by CVT for 1 + F max |grad phi_h| over its points (`pf.adapt`), with max-ent
-locality --gamma (graded grids want less than uniform ones: runs/pears/README.md) and
---floor Q (one locality over the finest nodes, `pf.Grid`'s spacing_floor). A switched
+locality --gamma (graded grids want less than uniform ones: runs/pears/README.md),
+--floor Q (one locality over the finest nodes, `pf.Grid`'s spacing_floor) and --band W
+(the density flat within W of the interfaces, `pf.adapt`'s band). A switched
 family does not retrace its route on these nodes: it starts from its coarse branch's last
 stable point (index 0), by Newton alone, and is followed both ways in v.
 
@@ -184,7 +185,8 @@ def trace(family, c0, args, comm, say):
                          box=box, branch=branch, symmetric=half)
         if coarse:
             along = [pf.Result(*shape) for shape in coarse['shapes']]
-            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:], **basis)
+            grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:], band=args.band,
+                            **basis)
         else:
             grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm,
                                    **basis)
@@ -408,7 +410,8 @@ def transitions(best, vs):
 def write(branches, args, out, wall):
     """OUT/branches.md, and by `diagram` the phase diagram. Not collective."""
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
-             f"{args.adapt:g} max |grad phi_h| over each branch's points" if args.adapt else
+             f"{args.adapt:g} max |grad phi_h| over each branch's points"
+             + (f" (and within {args.band:g} of them)" if args.band else '') if args.adapt else
              f"uniform grids of the spacing of {args.nodes} nodes in the paper box")
     floor = f" (spacing floored at its {args.floor:g}-quantile)" if args.floor else ''
     head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}{floor}, R = {RADIUS:g}, "
@@ -420,6 +423,7 @@ def write(branches, args, out, wall):
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
                + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
+               + (f" --band {args.band:g}" if args.band else '')
                + (f" --gamma {args.gamma:g}" if args.gamma != Params.gamma else '')
                + (f" --floor {args.floor:g}" if args.floor else '')
                + f" --out {args.out}`")
@@ -681,6 +685,8 @@ def main(argv=None):
                     help='follow each branch on the nodes of its branch in --coarse, relocated '
                          'by CVT for 1 + F max |grad phi_h| over its points')
     ap.add_argument('--coarse', metavar='DIR', help='the atlas whose branches --adapt follows')
+    ap.add_argument('--band', type=float, default=Params.adapt_band, metavar='W',
+                    help=f"{HELP['adapt_band']}, of --adapt")
     ap.add_argument('--gamma', type=float, default=Params.gamma,
                     help=f"{HELP['gamma']} of every grid; graded grids want less than "
                          "uniform ones (runs/pears/README.md)")
@@ -695,6 +701,8 @@ def main(argv=None):
     args = launch.parsed(ap, argv)
     if bool(args.adapt) != bool(args.coarse):
         ap.error('--adapt and --coarse go together')
+    if args.band and not args.adapt:
+        ap.error('--band needs --adapt')
     if args.plot:
         plot(args.plot)
         return 0

@@ -81,3 +81,31 @@ def test_nodes_along_a_branch_gather_at_every_interface(relocated):
     far = np.hypot(new[:, 0], new[:, 1] - 0.7)
     for radius in (0.45, 0.6):
         assert np.median(h[np.abs(far - radius) < EPS / 2]) < 0.7 * np.median(h[far > 0.9])
+
+
+def test_dilate_takes_the_largest_value_within_the_band():
+    r, z = np.linspace(0.0, 1.0, 11), np.linspace(0.0, 2.0, 41)  # steps 0.1 and 0.05
+    values = np.zeros((len(z), len(r)))
+    values[20, 5], values[10, 0] = 3.0, 2.0  # at (r, z) = (0.5, 1.0) and (0, 0.5)
+    assert adapt.dilate(values, r, z, 0.0) is values
+    R, Z = np.meshgrid(r, z)
+    out = adapt.dilate(values, r, z, 0.25)
+    near = np.hypot(R - 0.5, Z - 1.0) <= 0.25 + 1e-12
+    axis = np.hypot(R, Z - 0.5) <= 0.25 + 1e-12
+    assert (out[near] == 3.0).all() and (out[axis] == 2.0).all()
+    assert (out[~near & ~axis] == 0.0).all()
+
+
+def test_a_band_evens_the_spacing_across_the_interface(relocated):
+    # Spacing in rings about the circle: within EPS / 2 of it against 1.5-2 EPS out.
+    # Without a band the nodes grade across the interface's tanh profile.
+    xy, phi, graded, _, _ = relocated
+    flat = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
+                          band=2 * EPS)[0]
+
+    def ratio(new):
+        h = nodes.nodal_spacing(new)
+        d = np.abs(np.hypot(new[:, 0], new[:, 1] - 0.7) - 0.45)
+        return np.median(h[(d >= 1.5 * EPS) & (d < 2 * EPS)]) / np.median(h[d < EPS / 2])
+
+    assert ratio(graded) > 1.15 and abs(ratio(flat) - 1) < 0.05
