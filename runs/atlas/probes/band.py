@@ -1,26 +1,16 @@
 """band.py F GAMMA W: adapted.py's solve at v 0.62 on nodes relocated for
-rho = 1 + F max_{|y - x| < W} |grad phi_h|(y): the density dilated by W, flat across
+rho = 1 + F max_{|y - x| < W} |grad phi_h|(y) (`pf.adapt`'s band): the density flat across
 the interfaces' band, so the nodes are graded only where phi_h is near +-1."""
 import sys, time
 import numpy as np
-from scipy.ndimage import maximum_filter
 import pfmembrane as pf
-from pfmembrane.kernels import adapt as kadapt
 from pfmembrane.kernels.nodes import nodal_spacings
 from pfmembrane.studies import atlas
 pf.api.petsc(sys.argv[:1])
 f, gamma, w = float(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
-raster = kadapt.gradient_raster
-def dilated(*args, **kw):
-    r, z, g = raster(*args, **kw)
-    k = int(np.ceil(w / (r[1] - r[0])))
-    y, x = np.mgrid[-k:k + 1, -k:k + 1] * (r[1] - r[0])
-    return r, z, maximum_filter(g, footprint=np.hypot(x, y) <= w, mode='nearest')
-kadapt.gradient_raster = dilated
 coarse = atlas.load(atlas.branch_path('runs/atlas/adapted_stomatocyte/coarse', 'stomatocyte', 0.0))
 along = [pf.Result(*s) for s in coarse['shapes']]
-nodes = pf.adapt(along[0], f, along=along[1:], gamma=gamma).nodes
-kadapt.gradient_raster = raster
+nodes = pf.adapt(along[0], f, along=along[1:], band=w, gamma=gamma).nodes
 sc = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'], branch='stomatocyte', symmetric=False)
 grid = pf.Grid(sc, nodes, gamma=gamma)
 pf.api.petsc().Sys.Print('smoothed spacing, quantiles 0 .05 .5 .75 .95 1:',
