@@ -139,7 +139,7 @@ class Grid:
         self.params = dict(gamma=gamma, cutoff=cutoff, quad_degree=quad_degree,
                            spacing_smoothing=spacing_smoothing, spacing_floor=spacing_floor,
                            partition=partition)
-        self.adapt_info, self.adapt_f, self.adapt_band, self._transferred = None, 0.0, 0.0, None
+        self.adapt_info, self._transferred = None, None
         t0 = time.perf_counter()
         stage = PETSc.Log.Stage('pfBasis')
         stage.push()
@@ -305,7 +305,6 @@ def adapt(result, f, comm=None, along=(), band=0.0, **grid_params):
                     f"{info['time']:.2f} s", comm=comm)
     grid = Grid(scene, xy, **{**basis, **grid_params}, comm=comm)
     grid.adapt_info, grid._transferred = info, (result, phi)
-    grid.adapt_f, grid.adapt_band = float(f), float(band)
     return grid
 
 
@@ -733,7 +732,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=True):
     converged, message, status, vals, stages = state
     setup = grid.setup_time if grid._setup_pending else 0.0
     adapt_f, adapt_band, adapt_time = (
-        (grid.adapt_f, grid.adapt_band, grid.adapt_info['time'])
+        (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
         if grid._setup_pending and grid.adapt_info else (0.0, 0.0, np.nan))
     grid._setup_pending = False
     nu = solver.nu

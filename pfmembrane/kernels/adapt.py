@@ -96,7 +96,8 @@ def relocate(comm, nodes, phi, box, beta, cutoff, f, plane=None, along=None, ban
     new, iterations, movement = comm.bcast(moved, root=0)
     new = new + shift
     new_phi = transfer(nodes, phi, beta, cutoff, new, box, plane)
-    info = dict(iterations=iterations, movement=movement, raster=grad.shape,
+    info = dict(f=float(f), band=float(band), iterations=iterations, movement=movement,
+                raster=grad.shape,
                 time_raster=t_raster, time=time.perf_counter() - t0,
                 h_min=(spacing_peak(h),
                        spacing_peak(nodal_spacing(new, plane=plane))))
