@@ -6,11 +6,13 @@ Helfrich model on local max-ent approximants, solved with PETSc.
     grid = pf.Grid.uniform(scene, nodes=6124)
     result = pf.solve(scene, grid, eps=0.04)
 
-The names below come from `pfmembrane.api`, imported on first use so that
-`python -m pfmembrane` starts PETSc before any numerical code loads.
+The names below come from `pfmembrane.api` (which says where each lives),
+imported on first use so that `python -m pfmembrane` starts PETSc before any
+numerical code loads. `petsc()` returns petsc4py's PETSc, started with the
+script's arguments.
 """
 __all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
-           'continuation', 'stability']
+           'continuation', 'stability', 'petsc']
 
 
 def __getattr__(name):

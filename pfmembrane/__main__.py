@@ -88,7 +88,7 @@ initialize()
 
 from petsc4py import PETSc  # noqa: E402
 
-from pfmembrane.parallel import faults
+from pfmembrane.parallel import faults, petsc  # noqa: E402
 from pfmembrane.io import options  # noqa: E402
 from pfmembrane.io.checkpoint import CheckpointError  # noqa: E402
 
@@ -111,7 +111,7 @@ def main():
         from pfmembrane.cli.app import run
         status = run(comm)
         if status == 0:
-            options.check_unused(opts, comm.tompi4py(), given)
+            options.check_unused(opts, comm.tompi4py(), given, petsc.options_left())
     except (options.UsageError, CheckpointError) as e:
         # Every rank reaches the same verdict from the same input.
         if comm.getRank() == 0:

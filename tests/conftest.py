@@ -19,18 +19,48 @@ test module cannot import this one by name.
     mpirun      mpirun(args): a 2-rank `Run` of the application to act on as it runs
     on_groups   on_groups(module, *args): a driver on one rank, then on two groups of one
 """
+import atexit
 import contextlib
 import os
 import queue
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
 
 import pytest
+
+
+def _own_ompi_session_dir():
+    """Under pytest-xdist, give this worker an Open MPI session directory of its own.
+
+    Open MPI 4.1 puts the session directory of a singleton (MPI initialised in this process)
+    and of mpiexec under `orte_tmpdir_base` (default /tmp) as ompi.<host>.<uid>; two workers
+    initialising MPI at once on a clean machine race to create it ("File exists") and one
+    dies in MPI_Init_thread. This runs when pytest loads this conftest, before any test
+    module imports mpi4py or petsc4py; children (mpiexec, their ranks) inherit the variable,
+    so each worker's whole process tree stays in its own directory. A base set by the user
+    is kept, with the worker's directory made inside it.
+    """
+    worker = os.environ.get('PYTEST_XDIST_WORKER')
+    if not worker:
+        return
+    key = 'OMPI_MCA_orte_tmpdir_base'
+    base = os.environ.get(key) or None
+    if base:
+        os.makedirs(base, exist_ok=True)
+    path = tempfile.mkdtemp(prefix=f'ompi-{worker}-', dir=base)
+    os.environ[key] = path
+    # Registered before mpi4py/petsc4py register their finalisation, so it runs after it.
+    atexit.register(shutil.rmtree, path, ignore_errors=True)
+
+
+_own_ompi_session_dir()
 
 ROOT = Path(__file__).resolve().parents[1]
 # Open MPI as root, with more ranks than cores, and without the single-copy mechanism

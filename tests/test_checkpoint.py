@@ -1,11 +1,14 @@
 """Tests of pfmembrane.io.checkpoint: round trip, atomic replacement, rejection
 of bad files, MPI collectivity and the XDMF description."""
 
+import contextlib
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 import xml.etree.ElementTree as ET
@@ -353,17 +356,48 @@ def test_write_below_a_regular_file(tmp_path):
         checkpoint.write(tmp_path / "file" / "state.h5", *make_state())
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root may write anywhere")
+NOBODY = 65534
+
+
+@contextlib.contextmanager
+def without_root():
+    """As root: real and effective uid NOBODY for the block, the saved uid kept at 0 to
+    come back. The checkpoint's guard is os.access, i.e. access(2), which checks the real
+    uid, and root passes every permission bit; not root: nothing to do."""
+    if os.geteuid() != 0:
+        yield
+        return
+    try:
+        os.setresuid(NOBODY, NOBODY, 0)
+    except PermissionError:
+        pytest.skip("root without CAP_SETUID cannot act as another user")
+    try:
+        yield
+    finally:
+        os.setresuid(0, 0, 0)
+
+
 def test_write_into_read_only_directory(tmp_path):
-    locked = tmp_path / "locked"
+    # Not under tmp_path: as root its parents are root's and 0o700, and NOBODY could not
+    # reach the directory at all (the guard before, "not an existing directory", would
+    # answer). The base lets others through; the locked directory lets none but its owner
+    # read and no one write.
+    base = Path(tempfile.mkdtemp(prefix="pfm-locked-"))
+    base.chmod(0o711)
+    locked = base / "locked"
     locked.mkdir()
     locked.chmod(0o500)
+    state = make_state()
     try:
-        with pytest.raises(CheckpointError, match="is not writable"):
-            checkpoint.write(locked / "state.h5", *make_state())
+        with without_root():
+            assert not os.access(locked, os.W_OK)
+            with pytest.raises(CheckpointError,
+                               match=re.escape(f"directory {locked} is not writable")):
+                checkpoint.write(locked / "state.h5", *state)
         assert os.listdir(locked) == []
     finally:
         locked.chmod(0o700)
+        shutil.rmtree(base)
 
 
 # --------------------------------------------------------------------- MPI
@@ -386,6 +420,7 @@ def say(line):
 
 
 task, path = sys.argv[1], sys.argv[2]
+failure = None
 try:
     if task == "write":
         # Only rank 0 holds the data, as after a gather to rank 0.
@@ -401,8 +436,15 @@ try:
     else:
         checkpoint.read(path, comm=comm)
 except checkpoint.CheckpointError as exc:
+    failure = exc
     say(f"rank {rank} raised: {exc}")
-    raise
+# Every rank's verdict is in its log before any rank exits: once one rank exits with an
+# error mpiexec tears the others down, maybe before they have written theirs. A rank left
+# waiting in a collective of the checkpoint's never reaches this barrier: the run hangs
+# and the test fails.
+comm.Barrier()
+if failure is not None:
+    raise failure
 say(f"rank {rank} done")
 """
 
@@ -460,13 +502,14 @@ def test_mpi_failure_raises_on_every_rank(tmp_path, task, reason, run_mpi):
     status, lines, _ = run_mpi(tmp_path, task, path, tmp_path / "state.npz")
 
     assert status != 0
+    # Each rank's own log, written before the barrier in MPI_SCRIPT: both ranks raised,
+    # with one message, and neither went on.
     raised = sorted(line for line in lines if " raised: " in line)
-    # mpiexec may tear rank 1 down before its output is forwarded once rank 0 exits.
-    assert [line.split()[1] for line in raised][:1] == ["0"]
+    assert [line.split()[1] for line in raised] == ["0", "1"], lines
     messages = {line.split(" raised: ", 1)[1] for line in raised}
-    assert len(messages) == 1
+    assert len(messages) == 1, raised
     assert messages.pop().startswith(reason.format(path=path))
-    assert not any(line.endswith(" done") for line in lines)
+    assert sorted(lines) == raised
 
 
 # -------------------------------------------------------------------- XDMF

@@ -58,7 +58,7 @@ def test_arclength_points_solve_the_scene_at_their_parameter(solved):
     bordered Newton solve from it there stops at once with the same energy (measured: 0
     or 1 iteration, 1e-13); the step grows, the index from the factorization's inertia is
     that of the m = 0 mode Hessian, and no fold is reported on this regular stretch."""
-    from pfmembrane.parallel.modes import ModeAnalysis
+    from pfmembrane.parallel.problem import Problem
     points = list(pf.continuation(solved, 'reduced_volume', ds=0.02, steps=3, checks=False))
     assert len(points) == 3
     vs = [p.attrs['reduced_volume'] for p in points]
@@ -72,46 +72,47 @@ def test_arclength_points_solve_the_scene_at_their_parameter(solved):
         assert again.energy == pytest.approx(p.energy, rel=1e-11)
         assert p.attrs['fold'] == 0 and p.attrs['index_change'] == 0
     last = points[-1]
-    analysis = ModeAnalysis(solved.grid, last.scene, EPS, last.phi, last.nu[0])
+    problem = Problem(solved.grid, last.scene, EPS, 'modes_test_')
+    analysis = problem.modes(last.phi, last.nu[0])
     try:
         assert analysis.spectrum(0).index == last.attrs['index_0'] == 0
     finally:
-        analysis.destroy()
+        problem.close()
 
 
 def test_the_corrector_lands_on_its_hyperplane_from_either_predictor(solved):
     """Two steps in v by Solver.arclength: the second from the tangent predictor and from
-    the one with the second-order term of the last two points (api._bend). That term
+    the one with the second-order term of the last two points (branching._bend). That term
     brings the start closer to the branch (measured |F| 0.026 against 0.123), both reach
     the same point of the same hyperplane (measured 1.1e-12 apart in v), and from the
     closer start the last step is a chord step on the factorization before (measured:
     3 steps on 3 factorizations from the tangent alone, on 2 with the term)."""
-    from pfmembrane.api import _Branch, _bend, _unit
-    branch = _Branch(solved, 'reduced_volume', None, None)
-    try:
-        solver, x, ds = branch.solver, branch.x, 0.02
-        (bx, bnu), _ = solver.tangent(x, 0.9, branch.at)
+    from pfmembrane.branching import Branch, _bend, _unit, arclength, branch_tangent
+    with Branch(solved, 'reduced_volume') as branch:
+        problem, x, ds = branch.problem, branch.x, 0.02
+        (bx, bnu), _ = branch_tangent(problem, x, 'reduced_volume', 0.9)
         t = _unit(bx, bnu, 1.0)
-        x0, nu0 = x.copy(), solver.nu.copy()
-        p1, _, _, _, (bx, bnu) = solver.arclength(x, 0.9, t, ds, branch.at, 7)
+        x0, nu0 = x.copy(), problem.nu.copy()
+        p1, _, _, _, (bx, bnu) = arclength(problem, x, 'reduced_volume', 0.9, t, ds, 7)
         t1 = _unit(bx, bnu, 1.0)
-        x1, nu1 = x.copy(), solver.nu.copy()
-        F = solver.P.bordered_matrix().createVecLeft()
+        x1, nu1 = x.copy(), problem.nu.copy()
+        F = problem.bordered_vec()
         starts, ends = [], []
         for bend in (None, _bend((x0, nu0, 0.9, ds), x1, nu1, p1, t1, ds)):
             bend_x, bend_nu, bend_p = bend or (x.duplicate(), 0.0, 0.0)
             x1.copy(x)
             x.axpy(ds, t1[0])
             x.axpy(1.0, bend_x)
-            solver.nu = nu1 + ds * t1[1] + bend_nu
-            branch.at(p1 + ds * t1[2] + bend_p)
-            starts.append(solver._residual(x, F).norm())
+            problem.nu = nu1 + ds * t1[1] + bend_nu
+            problem.at('reduced_volume', p1 + ds * t1[2] + bend_p)
+            starts.append(problem.residual(x, F).norm())
             x1.copy(x)
-            solver.nu = nu1.copy()
-            branch.at(p1)
-            before = solver.factorizations
-            p2, its, factored, _, _ = solver.arclength(x, p1, t1, ds, branch.at, 7, bend)
-            assert solver.factorizations - before == factored
+            problem.nu = nu1.copy()
+            problem.at('reduced_volume', p1)
+            before = problem.solver.factorizations
+            p2, its, factored, _, _ = arclength(problem, x, 'reduced_volume', p1, t1, ds, 7,
+                                                bend)
+            assert problem.solver.factorizations - before == factored
             ends.append((p2, x.copy(), its, factored))
         assert starts[1] < 0.8 * starts[0]
         assert ends[1][0] == pytest.approx(ends[0][0], abs=1e-9)
@@ -119,8 +120,6 @@ def test_the_corrector_lands_on_its_hyperplane_from_either_predictor(solved):
         d.axpy(-1.0, ends[0][1])
         assert d.norm(3) < 1e-7 * ends[0][1].norm(3)
         assert ends[0][3] <= ends[0][2] and ends[1][3] < ends[1][2]
-    finally:
-        branch.close()
 
 
 def test_continuation_in_c0_goes_both_ways(solved):

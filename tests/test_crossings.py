@@ -76,15 +76,21 @@ def test_notes_page(tmp_path):
 
 @pytest.mark.slow
 def test_a_short_series_stays_on_its_branch():
-    """Two prolate states on a coarse half-box grid: one sphere, level-set energy within
-    2% of the sharp one (eps 0.04 on the spacing of 12,271 nodes: 1.3% at v = 0.66, the
-    neck barely resolved; a state off the branch is a different shape, tens of percent)."""
+    """Two prolate states on a coarse half-box grid: one sphere, the level-set energy the
+    known eps discrepancy above the sharp one (eps 0.04 on the spacing of 12,271 nodes)."""
     import pfmembrane as pf
     comm = pf.api.petsc(sys.argv[:1]).COMM_WORLD
     args = SimpleNamespace(eps=0.04, nodes=12271, solver={})
     s = crossings.follow('prolate', [0.66, 0.65], args, lambda *a: None)
     assert s['symmetric'] and comm.getSize() == 1
     assert [r['attrs']['topology'] for r in s['rows']] == ['1 sphere'] * 2
-    for r in s['rows']:
+    # Level set against sharp, measured (2026-12, serial): +1.267e-2 at v = 0.66, +1.341e-2
+    # at v = 0.65. A real discrepancy of the phase field's width, not of the solve: it falls as
+    # eps^4 along this branch (runs/crossings: +8.6e-4 at eps 0.02, +5.4e-5 at eps 0.01 at
+    # v = 0.66; x16 per halving gives 1.4e-2 at 0.04). The band is the measured values
+    # +-1.5e-3 (some 12% of the discrepancy): two runs, of HEAD and of a refactored tree,
+    # agreed to all 16 digits, so only a change of the discretisation, the solve or the
+    # energies moves them that far.
+    for r, measured in zip(s['rows'], (1.267e-2, 1.341e-2)):
         a = r['attrs']
-        assert abs(a['level_set_energy'] / a['sharp_energy'] - 1) < 2e-2
+        assert a['level_set_energy'] / a['sharp_energy'] - 1 == pytest.approx(measured, abs=1.5e-3)

@@ -1,4 +1,4 @@
-"""Azimuthal stability modes (pfmembrane.kernels.modes, pfmembrane.parallel.modes) of an
+"""Azimuthal stability modes (pfmembrane.kernels.azimuthal, pfmembrane.parallel.stability) of an
 in-process solve on one rank: H_m against finite differences of the 3D Lagrangian, the
 eigensolver against dense linear algebra, the rigid motions in m = 1, the moment
 constraint in m = 0."""
@@ -37,10 +37,9 @@ def solved(comm):
 
 @pytest.fixture(scope='module')
 def analysis(solved):
-    from pfmembrane.parallel.modes import ModeAnalysis
-    a = ModeAnalysis(solved.grid, SCENE, EPS, solved.phi, solved.nu[0])
-    yield a
-    a.destroy()
+    from pfmembrane.parallel.problem import Problem
+    with Problem(solved.grid, SCENE, EPS, 'modes_test_') as problem:
+        yield problem.modes(solved.phi, solved.nu[0])
 
 
 def _lagrangian_3d(a, phi, chi, m, t, nu, n_theta=32):
@@ -142,14 +141,15 @@ def test_index_and_eigenpairs_match_dense_linear_algebra(analysis, m):
 def test_negative_eigenvalues_far_from_zero_are_all_found(solved):
     """A tension far above the state's makes the area term -nu_A Hess A dominate: many
     negative eigenvalues, the lowest far from the first shift 0, which must move."""
-    from pfmembrane.parallel.modes import ModeAnalysis
-    a = ModeAnalysis(solved.grid, SCENE, EPS, solved.phi, 40 * solved.nu[0])
+    from pfmembrane.parallel.problem import Problem
+    problem = Problem(solved.grid, SCENE, EPS, 'modes_test_')
+    a = problem.modes(solved.phi, 40 * solved.nu[0])
     try:
         H, M, _ = _dense(a, 3, 0)
         dense = scipy.linalg.eigh(H, M, eigvals_only=True)
         s = a.spectrum(3)
     finally:
-        a.destroy()
+        problem.close()
     assert s.index == np.count_nonzero(dense < 0) > a.nev
     np.testing.assert_allclose(s.eigenvalues, dense[:a.nev], rtol=1e-8)
 
@@ -175,8 +175,9 @@ def finer(comm):
 def _rigid_modes(result):
     """The m = 1 spectrum of `result`, the fields of its two lowest modes and of the
     rigid motions at the quadrature points away from the walls, with the weights there."""
-    from pfmembrane.parallel.modes import ModeAnalysis
-    a = ModeAnalysis(result.grid, SCENE, EPS, result.phi, result.nu[0])
+    from pfmembrane.parallel.problem import Problem
+    problem = Problem(result.grid, SCENE, EPS, 'modes_test_')
+    a = problem.modes(result.phi, result.nu[0])
     try:
         s = a.spectrum(1)
         o = a.forms.ops
@@ -184,7 +185,7 @@ def _rigid_modes(result):
         modes = np.array([a.field(chi, 1)[inner] for chi in s.vectors[:2]])
         motions = [f[inner] / np.abs(f).max() for f in a.forms.rigid(1)]
     finally:
-        a.destroy()
+        problem.close()
     return s, modes, motions, o.w[inner]
 
 
@@ -212,7 +213,7 @@ def test_the_lowest_m1_modes_are_the_lateral_translation_and_rotation(solved, fi
 def test_stability_records_the_index_per_m_that_the_checkpoint_keeps(solved, tmp_path):
     """pf.stability: per m the index of `spectrum` without the rigid motions, the lowest
     non-rigid eigenvalue, both written by `save` and read back."""
-    from pfmembrane.kernels.modes import RIGID
+    from pfmembrane.kernels.azimuthal import RIGID
     spectra = pf.stability(solved, modes=2)
     assert [s.m for s in spectra] == [0, 1, 2]
     rigid = [(s.rigid > RIGID) for s in spectra]

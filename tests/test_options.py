@@ -20,6 +20,7 @@ from petsc4py import PETSc  # noqa: E402
 from pfmembrane.io import options  # noqa: E402
 from pfmembrane.kernels.initial import spheroid_axes  # noqa: E402
 from pfmembrane.io.options import Params, UsageError  # noqa: E402
+from pfmembrane.parallel.petsc import options_left  # noqa: E402
 
 # The small scene of the command-line tests, as option strings.
 SCENE = {'eps': '0.06', 'box': '0.8,1.0', 'nodes': '1000', 'radius': '0.4',
@@ -150,8 +151,8 @@ def test_unused_options_are_those_given_and_never_looked_up():
     try:
         opts.getInt('zz_read')
         with pytest.raises(UsageError, match=r"^option -zz_never_read never used"):
-            options.check_unused(opts, comm, ['zz_never_read', 'zz_read'])
-        options.check_unused(opts, comm, ['zz_read'])
+            options.check_unused(opts, comm, ['zz_never_read', 'zz_read'], options_left())
+        options.check_unused(opts, comm, ['zz_read'], options_left())
     finally:
         for name in ('zz_never_read', 'zz_read', 'zz_set_by_the_program'):
             opts.delValue(name)

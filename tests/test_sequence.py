@@ -6,7 +6,7 @@ import pytest
 
 from pfmembrane.io import checkpoint
 from pfmembrane.studies import launch, sequence
-from pfmembrane.scenes import SHARP, SHARP_ERROR
+from pfmembrane.paper import SHARP, SHARP_ERROR
 
 SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'
 

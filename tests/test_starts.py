@@ -1,4 +1,4 @@
-"""Initial shapes of every family (kernels.initial, io.options.check_fits): their
+"""Initial shapes of every family (kernels.initial, starts.check_fits): their
 geometry, signed distances, the box and half-box checks, and -help."""
 import math
 from dataclasses import replace
@@ -11,6 +11,7 @@ from pfmembrane.analysis.contour import zero_contour
 from pfmembrane.analysis.limit import enclosed_volume, topology
 from pfmembrane.io import options
 from pfmembrane.io.options import Params, UsageError
+from pfmembrane.starts import check_fits
 from pfmembrane.kernels import initial
 
 R = 0.4
@@ -39,7 +40,7 @@ def level_set_area(curve):
 
 def test_the_clifford_torus_has_radii_in_ratio_sqrt2_and_its_level_set_the_targets():
     p = scene(branch='torus', reduced_volume=CLIFFORD, box=(0.8, 1.0), eps=0.02)
-    kind, (a, b) = options.check_fits(p)
+    kind, (a, b) = check_fits(p)
     assert kind == 'torus'
     assert a == pytest.approx(0.18977, abs=1e-5) and b / a == pytest.approx(math.sqrt(2), 1e-9)
     r, z, points, shape = raster(p.box, 0.004)
@@ -103,7 +104,7 @@ def test_two_spheres_have_the_area_volume_and_centroid(v, ratio):
 
 def test_the_budded_start_of_the_limit_is_two_equal_spheres_of_radius_r_over_sqrt2():
     p = scene(branch='budded', reduced_volume=1 / math.sqrt(2), box=(0.7, 1.8), eps=0.02)
-    kind, (radii, heights) = options.check_fits(p)
+    kind, (radii, heights) = check_fits(p)
     assert kind == 'spheres' and np.allclose(radii, R / math.sqrt(2))
     assert np.allclose(heights, [-R / math.sqrt(2), R / math.sqrt(2)])  # touching, centred
     _, _, points, shape = raster(p.box, 0.005)
@@ -115,7 +116,7 @@ def test_the_budded_start_of_the_limit_is_two_equal_spheres_of_radius_r_over_sqr
 
 def test_the_pear_start_is_two_unequal_spheres():
     p = scene(branch='pear', reduced_volume=0.8, box=(0.7, 1.6), eps=0.03)
-    kind, (radii, heights) = options.check_fits(p)
+    kind, (radii, heights) = check_fits(p)
     assert kind == 'spheres' and radii[1] == pytest.approx(initial.PEAR_RATIO * radii[0])
     with pytest.raises(UsageError, match='pair of spheres'):
         options.validate(replace(p, reduced_volume=0.7))

@@ -4,7 +4,7 @@ full-box row, and differences beyond 0.1 points are counted as misses."""
 import h5py
 
 from pfmembrane.studies import table4
-from pfmembrane.scenes import SHARP, SHARP_ERROR
+from pfmembrane.paper import SHARP, SHARP_ERROR
 from test_sequence import fake_checkpoint
 
 

@@ -98,7 +98,7 @@ class PhaseField:
     """phi_h = sum_a p_a(x) phi_a of a checkpoint, with the solver's basis.
 
     Not collective.  The basis is the one of
-    `pfmembrane.parallel.discretization.Grid`: the locality beta_a of the
+    `pfmembrane.parallel.discretization.Discretization`: the locality beta_a of the
     checkpoint's basis parameters (`kernels.basis.spacing_and_locality`,
     `io.checkpoint.basis`), its support cut-off, and the nodes within a
     support radius of the axis mirrored to r < 0 with their original's

@@ -7,15 +7,13 @@ other option still unused when a run has finished is refused at the end
 (`check_unused`), unless `-options_left` asks for PETSc's own report.
 """
 from dataclasses import dataclass, fields
-import ctypes
 import difflib
 import math
 import os
 import tempfile
 
-import numpy as np
 
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.paper import PAPER_BOX, SCENE
 
 # The initial shapes of each family (-pf_start), its default (auto) first: spheroids and
 # sharp-interface shapes (`analysis.sharp`) where they exist, else a construction of its own
@@ -48,6 +46,7 @@ class Settings:
     stage1_max_it: int = 30
     stage2_rtol: float = 1e-10
     monitor: bool = False
+    summary: bool = False
     force: bool = False
     start: str = 'auto'
 
@@ -73,12 +72,12 @@ class Targets:
 class Params(Settings, Targets):
     """Every application option: the scene, its grid, the run and the solver."""
     eps: float = 0.04
-    k: float = 1.0
-    c0: float = 0.0
-    radius: float = 0.4
-    reduced_volume: float = 0.8
-    box: tuple = PAPER_BOX
-    branch: str = 'oblate'
+    k: float = SCENE['k']
+    c0: float = SCENE['c0']
+    radius: float = SCENE['radius']
+    reduced_volume: float = SCENE['reduced_volume']
+    box: tuple = SCENE['box']
+    branch: str = SCENE['branch']
     nodes: int = 6124
     symmetric: bool = False
     gamma: float = 0.8
@@ -130,6 +129,7 @@ HELP = {
     'stage1_max_it': 'augmented-Lagrangian outer iterations',
     'stage2_rtol': 'relative residual of the bordered Newton stage',
     'monitor': 'print one row per iteration (energy, residuals, max |phi|)',
+    'summary': 'print one line per stage (the command line: always; the API: when asked)',
     'force': 'run even when eps is below what the grid resolves (result flagged)',
 }
 
@@ -339,9 +339,8 @@ def validate(p):
              p.partition)
     if p.nodes < MIN_NODES and not p.restart:
         raise UsageError(f"-pf_nodes {p.nodes} is too few: at least {MIN_NODES} nodes are needed")
-    if p.restart or p.box == 'auto':
-        return  # a restart's box is the checkpoint's, its start its phi
-    check_fits(p)
+    if not p.restart:
+        start_kind(p.branch, p.start)  # whether its start fits its box: `starts.check_fits`
 
 
 def start_kind(branch, start='auto'):
@@ -352,44 +351,6 @@ def start_kind(branch, start='auto'):
         raise UsageError(f"-pf_start {start}: the {branch} starts from "
                          f"{' or '.join(STARTS[branch])} (-pf_start auto)")
     return start
-
-
-def check_fits(p, eps=None, start=None, sharp=None):
-    """The start's kind and shape (`kernels.initial.extent`: a spheroid's
-    semi-axes, a torus's radii, spheres' radii and heights, or the sharp
-    generating curve (r, z) about its centroid), which with a 3 eps margin must
-    fit the box (`p` a `Params`, or a scene and its `eps`; `start` the
-    -pf_start choice, by default `p`'s or auto). A sharp start is checked
-    only with its `sharp` curve, which the layers above compute
-    (`api._sharp_shape`): without it the shape returned is None."""
-    from pfmembrane.kernels import initial
-    start = start or getattr(p, 'start', 'auto')
-    kind = start_kind(p.branch, start)
-    if kind == 'sharp' and sharp is None:
-        return kind, None
-    scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
-             f"-pf_branch {p.branch}")
-    try:
-        # Floating-point trouble means no shape, as an error rather than a warning on stderr.
-        with np.errstate(divide='raise', over='raise', invalid='raise', under='ignore'):
-            shape = sharp if kind == 'sharp' else initial.construction(kind, p.branch, p.area,
-                                                                      p.volume)
-            size, why = initial.extent(kind, shape), ''
-    except (ValueError, ArithmeticError) as e:
-        size, why = (math.nan, math.nan), f" ({e})" if str(e) else ''
-    if not all(0 < x < math.inf for x in size):
-        raise UsageError(f"no {SHAPE_NAMES[kind]} has the area and volume of {scene}: "
-                         f"the initial guess cannot be built{why}")
-    Rb, Zb = p.box
-    margin = 3.0 * (p.eps if eps is None else eps)
-    r, z = size
-    if r + margin > Rb or z + margin > 0.5 * Zb:
-        raise UsageError(
-            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (its "
-            f"{SHAPE_NAMES[kind]} start reaches r = {r:.4g}, |z - Zb/2| = {z:.4g}) with a "
-            f"margin of 3 -pf_eps: need Rb >= "
-            f"{r + margin:.4g}, Zb >= {2 * (z + margin):.4g}")
-    return kind, shape
 
 
 def default_output(p):
@@ -432,7 +393,7 @@ def _output_problem(path):
     return None
 
 
-def check_unused(opts, comm, given):
+def check_unused(opts, comm, given, left):
     """Refuse options given to a finished run that nothing used.
 
     Collective. The PETSc database marks every option looked up; those of
@@ -448,35 +409,15 @@ def check_unused(opts, comm, given):
     comm : mpi4py.MPI.Comm
     given : iterable of str
         Option names (without the dash) present before the run.
+    left : iterable of str
+        The names nothing looked up (`parallel.petsc.options_left`).
     """
     if opts.hasName('help') or opts.hasName('options_left'):
         return
-    mine = set(options_left()) & {name.lower() for name in given}
+    mine = set(left) & {name.lower() for name in given}
     unused = sorted(set.intersection(*map(set, comm.allgather(sorted(mine)))))
     if unused:
         raise UsageError(
             f"option{'s' if len(unused) > 1 else ''} {', '.join('-' + n for n in unused)} "
             "never used (misspelt, or for a solver this run does not create); "
             "-options_left reports them without failing")
-
-
-def options_left():
-    """Names (lower case, without the dash) of the options nothing looked up.
-
-    petsc4py has no wrapper of PetscOptionsLeftGet; it is reached through the
-    PETSc library the extension module links.
-    """
-    from petsc4py import PETSc
-    lib = ctypes.CDLL(PETSc.__file__)
-    pint = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
-    strings = ctypes.POINTER(ctypes.c_char_p)
-    args = [ctypes.c_void_p, ctypes.POINTER(pint), ctypes.POINTER(strings),
-            ctypes.POINTER(strings)]
-    lib.PetscOptionsLeftGet.argtypes = lib.PetscOptionsLeftRestore.argtypes = args
-    n, names, values = pint(), strings(), strings()
-    refs = (None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values))
-    if lib.PetscOptionsLeftGet(*refs):
-        raise RuntimeError("PetscOptionsLeftGet failed")
-    left = [names[i].decode().lower() for i in range(n.value)]
-    lib.PetscOptionsLeftRestore(*refs)
-    return left

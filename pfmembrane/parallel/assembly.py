@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from pfmembrane.kernels.functionals import Functionals
 
 
-class Problem:
+class Assembly:
     """Energy and constraints of one scene on one grid, on distributed Vecs.
 
     Collective. `targets` = (A0, V0); on the full box the moment M = 0 is a

@@ -35,7 +35,7 @@ class Operators(NamedTuple):
     z: np.ndarray
 
 
-class Grid:
+class Discretization:
     """A node set with its max-ent basis, partition and local operators.
 
     Collective. Parameters are plain values: `box` = (Rb, Zb), `gamma` the

@@ -6,15 +6,13 @@ the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
 tension, nu_V the pressure difference.
 """
 import ctypes
-import functools
-import itertools
-import math
 import time
 
 import numpy as np
 from petsc4py import PETSc
 
 from pfmembrane.parallel.faults import poll
+from pfmembrane.parallel.petsc import MUMPS_LDLT, libpetsc
 
 
 SHIFT_GROWTH = 8.0
@@ -23,14 +21,6 @@ SHIFT_GROWTH = 8.0
 # far from the minimizer), or at once where |grad L| < RESTART_GTOL |grad E|.
 RESTART_DECREMENT = 1e-9
 RESTART_GTOL = 1e-6
-# Relative parameter step of the central difference F_p in the arclength corrector.
-DP = 1e-4
-CRITICAL_IT = 12  # inverse iterations for the critical mode at a bifurcation
-# The arclength corrector keeps its factorization once |F| is below CHORD_RTOL of the
-# predictor's (there a chord step gains as much as a Newton step's last digits need),
-# as long as each step cuts |F| by CHORD_GAIN (runs/atlas/notes.md).
-CHORD_RTOL = 1e-5
-CHORD_GAIN = 0.1
 
 
 class SolveError(Exception):
@@ -48,16 +38,15 @@ class Solver:
     """Drives both stages on one Problem. Collective.
 
     `settings` holds the application's solver options (`io.options.Settings`);
-    the PETSc objects read theirs under `prefix` + 'stage1_' and 'stage2_'.
-    Defaults the solver gives PETSc (MUMPS controls) are set under that prefix
-    where the database has none, and listed in `defaults` for the caller to
-    remove. `x` is the distributed Vec of free nodal values, updated in place.
+    the PETSc objects read theirs under the prefix of `options` (a
+    `parallel.petsc.Options` scope) + 'stage1_' and 'stage2_', and the
+    defaults the solver gives PETSc (MUMPS controls) go into that scope. `x`
+    is the distributed Vec of free nodal values, updated in place.
     """
 
-    def __init__(self, problem, settings, prefix='', print_fn=PETSc.Sys.Print):
+    def __init__(self, problem, settings, options, print_fn=PETSc.Sys.Print):
         self.P, self.p = problem, settings
-        self.prefix = prefix
-        self.defaults = []
+        self.options, self.prefix = options, options.prefix
         self.print = print_fn
         self.gE, self.gA = problem.create_vec(), problem.create_vec()
         self.ncon = problem.ncon
@@ -68,8 +57,7 @@ class Solver:
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0
-        self._ksps = {}  # direct solvers by options prefix (`_direct_ksp`)
-        self._work = problem.create_vec()  # grad L of `_residual`
+        self._ksps = {}  # direct solvers by options prefix (`direct_ksp`)
         self.mpi = problem.mpi
         self.stats = {}
 
@@ -154,7 +142,7 @@ class Solver:
         bordered system [[H, -C^T], [-C, -mu I]] whose inertia has exactly ncon
         negative eigenvalues iff Hess L_A = H + C^T C / mu is positive definite."""
         P = self.P
-        ksp = self._direct_ksp('stage1_')
+        ksp = self.direct_ksp('stage1_')
         K = P.bordered_matrix()
         rhs, sol = K.createVecs()
         g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
@@ -183,7 +171,7 @@ class Solver:
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
                 ksp.solve(rhs, sol)
                 self.factorizations += 1
-                nneg = self._negative_pivots(ksp)
+                nneg = self.negative_pivots(ksp)
                 d.setArray(sol.getArray(readonly=True)[:nl])
                 slope = g.dot(d)
                 if (nneg is None or nneg == self.ncon) and slope < 0:
@@ -212,7 +200,7 @@ class Solver:
     def _mean_diagonal(K):
         return K.getDiagonal().norm(PETSc.NormType.NORM_1) / K.getSize()[0]
 
-    def _negative_pivots(self, ksp):
+    def negative_pivots(self, ksp):
         pc = ksp.getPC()
         try:
             if pc.getType() == PETSc.PC.Type.REDUNDANT:
@@ -301,7 +289,7 @@ class Solver:
         # |F| is a poor merit function. On the 24,597-node discocyte at eps 0.007
         # a full step takes |F| from 4.4e-6 to 9.5e-5 and the next to 3e-11, while
         # backtracking (bt) crawled at 2-10% steps for 50 iterations.
-        self._set_default('stage2_snes_linesearch_type', 'basic')
+        self.options.default('stage2_snes_linesearch_type', 'basic')
         self._configure_direct(snes.getKSP(), 'stage2_')
         snes.setFromOptions()
         self._redundant_defaults(snes.getKSP(), 'stage2_')
@@ -325,172 +313,6 @@ class Solver:
                              "try a tighter stage 1 (-pf_stage1_rtol) or a finer grid")
         return vals, res
 
-    # -- continuation --------------------------------------------------------
-    # A branch is followed in a scene parameter p that `at(p)` sets on the
-    # problem: the targets c0 and C0. F is quadratic in C0 (grad E is linear in
-    # W, W affine in C0), so F_p by central differences is exact but for
-    # rounding; where C0 stays, only the constraint rows -(c - c0) move.
-    def _residual(self, x, out):
-        """out = F(x, nu) = [grad E - C^T nu; -(c - c0)] in the bordered layout."""
-        P = self.P
-        nl = P.layout.nowned
-        _, res = self.evaluate(x)
-        out.getArray()[:nl] = self.combine(self._work, self.nu).getArray(readonly=True)
-        if P.comm.getRank() == P.comm.getSize() - 1:
-            out.getArray()[nl:] = -res
-        return out
-
-    def _parameter_derivative(self, x, p, at, out):
-        """out = dF/dp at (x, nu, p), by central differences; leaves the problem at p.
-        A parameter that moves only the targets (v, R) costs no evaluation of F."""
-        P = self.P
-        h = DP * max(1.0, abs(p))
-        at(p + h)
-        up, c0_up = P.targets.copy(), P.forms.c0
-        at(p - h)
-        if P.forms.c0 == c0_up:  # F_p = [0; dc0/dp]
-            out.zeroEntries()
-            if P.comm.getRank() == P.comm.getSize() - 1:
-                out.getArray()[P.layout.nowned:] = (up - P.targets) * (0.5 / h)
-        else:
-            self._residual(x, out)
-            at(p + h)
-            out.axpy(-1.0, self._residual(x, out.duplicate()))
-            out.scale(-0.5 / h)
-        at(p)
-        return out
-
-    def _split(self, X):
-        """(x part Vec, nu part on every rank) of a bordered-layout Vec."""
-        P = self.P
-        nl, last = P.layout.nowned, P.comm.getRank() == P.comm.getSize() - 1
-        x = P.create_vec()
-        x.setArray(X.getArray(readonly=True)[:nl])
-        nu = X.getArray(readonly=True)[nl:].copy() if last else None
-        return x, np.asarray(self.mpi.bcast(nu, root=P.comm.getSize() - 1))
-
-    def tangent(self, x, p, at):
-        """((dx, dnu), negative pivots): dX/dp of the converged state (x, nu)
-        along its branch, J dX/dp = -F_p with J the stage-2 Jacobian there (one
-        factorization), and that factorization's negative pivots (None
-        without inertia)."""
-        K = self.P.bordered_matrix()
-        Fp = self._parameter_derivative(x, p, at, K.createVecLeft())
-        ksp = self._jacobian_at(x)
-        Fp.scale(-1.0)
-        b = K.createVecLeft()
-        ksp.solve(Fp, b)
-        return self._split(b), self._negative_pivots(ksp)
-
-    def _jacobian_at(self, x):
-        """The stage-2 direct solver with the Jacobian at the converged (x, nu) as its
-        operator (factored at its first solve)."""
-        K = self.P.bordered_matrix()
-        self.evaluate(x)
-        self.P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-        ksp = self._direct_ksp('stage2_')
-        ksp.setOperators(K)
-        self.factorizations += 1
-        return ksp
-
-    def critical_mode(self, x, iterations=CRITICAL_IT):
-        """(m_x, m_nu, eigenvalue, negative pivots): the eigenvector of the Hessian of
-        the Lagrangian on the constraints' tangent space whose eigenvalue is nearest
-        zero, by inverse iteration with the stage-2 Jacobian at (x, nu) (one
-        factorization; a solve with the right-hand side (y, 0) applies the inverse of
-        that Hessian to y's part in the tangent space). At a bifurcation it points along
-        the branch that crosses this one. The start mixes every symmetry (up-down
-        antisymmetric modes too)."""
-        lay = self.P.layout
-        ksp = self._jacobian_at(x)
-        rhs, sol = ksp.getOperators()[0].createVecs()
-        rhs.zeroEntries()  # the constraint rows stay 0
-        y, z = x.duplicate(), x.duplicate()
-        y.setArray(np.sin(1.0 + 0.618034 * np.arange(lay.start, lay.start + lay.nowned)))
-        value = math.nan
-        for _ in range(iterations):
-            y.scale(1.0 / y.norm())
-            rhs.getArray()[:lay.nowned] = y.getArray(readonly=True)
-            ksp.solve(rhs, sol)
-            z.setArray(sol.getArray(readonly=True)[:lay.nowned])
-            value = 1.0 / y.dot(z)  # |y| = 1: the inverse's Rayleigh quotient, inverted
-            z.copy(y)
-        _, nu = self._split(sol)
-        scale = math.sqrt(y.getSize()) / y.norm()  # unit RMS, the arclength norm
-        y.scale(scale)
-        return y, scale * nu, value, self._negative_pivots(ksp)
-
-    def arclength(self, x, p, t, ds, at, max_it=25, bend=None):
-        """The pseudo-arclength corrector (Keller's bordering): Newton on
-        F(x, nu; p) = 0 with N = t_x . (x - x0) + t_p (p - p0) - ds = 0, from
-        the predictor (x0 + ds t_x, nu + ds t_nu, p0 + ds t_p) plus `bend`.
-
-        `t` = (t_x Vec, t_nu, t_p) with (t_x, t_p) a unit vector in the norm
-        |(x, p)|^2 = x . x / n + p^2 (n free values: an RMS of phi); `bend`
-        (b_x Vec, b_nu, b_p), if given, is the predictor's second-order term.
-        Each iteration solves J a = -F, J b = -F_p: the step is a + dp b, dp
-        making N vanish to first order; b is dX/dp there. J is factored again
-        unless |F| is below CHORD_RTOL of the predictor's and the last step cut
-        it by CHORD_GAIN (then a chord step: Newton has converged but for its
-        last digits). Returns (p, iterations, factorizations,
-        negative pivots of the last factorization, (b_x, b_nu)); x and nu are
-        updated in place. Raises SolveError where `max_it` Newton steps (on as
-        many factorizations; chord steps do not count) have not converged.
-        """
-        P = self.P
-        K = P.bordered_matrix()
-        ksp = self._direct_ksp('stage2_')
-        F, Fp, a, b = (K.createVecLeft() for _ in range(4))
-        tx, tnu, tp = t
-        x0, p0 = x.copy(), p
-        x.axpy(ds, tx)
-        self.nu = self.nu + ds * np.asarray(tnu)
-        p = p0 + ds * tp
-        if bend is not None:
-            x.axpy(1.0, bend[0])
-            self.nu = self.nu + np.asarray(bend[1])
-            p += bend[2]
-        dx, n = x.duplicate(), x.getSize()
-        norm0 = last = None
-        factored, converged = 0, False
-        for it in itertools.count():
-            self._parameter_derivative(x, p, at, Fp)
-            self._residual(x, F)
-            x.copy(dx)
-            dx.axpy(-1.0, x0)
-            N = tx.dot(dx) / n + tp * (p - p0) - ds
-            norm = F.norm()
-            norm0 = norm if norm0 is None else norm0
-            converged = (it > 0 and norm <= max(self.p.stage2_rtol * norm0, 1e-12)
-                         and abs(N) < 1e-10 * abs(ds))
-            if converged:
-                break
-            if not (it and norm <= CHORD_RTOL * norm0 and norm <= CHORD_GAIN * last):
-                if factored == max_it:
-                    break
-                factored += 1
-                P.assemble_bordered(x, self.nu[0], self.C, 0.0)
-                ksp.setOperators(K)
-                self.factorizations += 1
-            last = norm
-            F.scale(-1.0)
-            ksp.solve(F, a)
-            Fp.scale(-1.0)
-            ksp.solve(Fp, b)
-            ax, _ = self._split(a)
-            bx, _ = self._split(b)
-            dp = -(N + tx.dot(ax) / n) / (tx.dot(bx) / n + tp)
-            a.axpy(dp, b)
-            step_x, step_nu = self._split(a)
-            x.axpy(1.0, step_x)
-            self.nu = self.nu + step_nu
-            p += dp
-            at(p)
-        if not converged:
-            raise SolveError(f"the arclength corrector did not converge in {max_it} Newton "
-                             f"iterations (|F| {norm:.2e}); try a shorter step")
-        return p, it, factored, self._negative_pivots(ksp), self._split(b)
-
     def destroy(self):
         """Free the PETSc objects kept between iterations."""
         for ksp in self._ksps.values():
@@ -501,12 +323,6 @@ class Solver:
             tao.destroy()
 
     # -- linear solvers --------------------------------------------------------
-    def _set_default(self, name, value):
-        opts, key = PETSc.Options(), self.prefix + name
-        if not opts.hasName(key):
-            opts.setValue(key, value)
-            self.defaults.append(key)
-
     def _configure_direct(self, ksp, stage):
         """Defaults: a MUMPS LDL^T factorization (the bordered matrices are
         symmetric indefinite, and LDL^T takes about half the work of LU)
@@ -516,9 +332,7 @@ class Solver:
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.CHOLESKY)
         pc.setFactorSolverType('mumps')
-        self._set_default(stage + 'mat_mumps_icntl_7', '6')
-        self._set_default(stage + 'mat_mumps_icntl_13', '1')  # inertia in parallel
-        self._set_default(stage + 'mat_mumps_icntl_24', '1')  # null pivots instead of failure
+        self.options.mumps(stage)
 
     def _redundant_defaults(self, ksp, stage):
         """The same LDL^T inside a PCREDUNDANT (`-stage1_pc_type redundant`): every rank
@@ -526,11 +340,12 @@ class Solver:
         stage-1 shifts and the index."""
         if ksp.getPC().getType() != PETSc.PC.Type.REDUNDANT:
             return
+        # sequential MUMPS: its inertia needs no parallel setting (icntl 13)
         for name, value in (('pc_type', 'cholesky'), ('pc_factor_mat_solver_type', 'mumps'),
-                            ('mat_mumps_icntl_7', '6'), ('mat_mumps_icntl_24', '1')):
-            self._set_default(stage + 'redundant_' + name, value)
+                            *((k, v) for k, v in MUMPS_LDLT.items() if k != 'mat_mumps_icntl_13')):
+            self.options.default(stage + 'redundant_' + name, value)
 
-    def _direct_ksp(self, stage):
+    def direct_ksp(self, stage):
         """One LDL^T (MUMPS Cholesky) solver under the `stage` prefix, kept for
         every later factorization of the same pattern (numeric only)."""
         if stage not in self._ksps:
@@ -541,15 +356,11 @@ class Solver:
         return self._ksps[stage]
 
 
-@functools.cache
-def _libpetsc():
-    return ctypes.CDLL(PETSc.__file__)  # libpetsc comes with petsc4py's extension
-
 
 def redundant_negative_pivots(pc):
     """The negative pivots of the factorization inside a PCREDUNDANT, through the C API
     that petsc4py does not wrap (SLEPc's spectrum slicing reads it the same way)."""
-    lib = _libpetsc()
+    lib = libpetsc()
     inner, inner_pc, factor = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
     nneg = np.zeros(1, dtype=PETSc.IntType)
     for call, args in ((lib.PCRedundantGetKSP, (ctypes.c_void_p(pc.handle), ctypes.byref(inner))),

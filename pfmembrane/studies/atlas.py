@@ -55,8 +55,9 @@ import warnings
 
 import numpy as np
 
+from pfmembrane.analysis.checks import phase_field_checks
 from pfmembrane.io.options import HELP, Params, UsageError
-from pfmembrane.scenes import paper_spacing
+from pfmembrane.paper import paper_spacing
 from pfmembrane.studies import launch
 
 RADIUS = 0.4
@@ -200,9 +201,9 @@ def trace(family, c0, args, comm, say):
         if resumed:
             k = last_stable(coarse['points'])
             start = pf.solve(along[k].scene, grid, args.eps, start=along[k],
-                             options=dict(args.solver, pf_stage1='none'))
+                             options=dict(args.solver, pf_stage1='none'), checks=True)
         else:
-            start = pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp'))
+            start = pf.solve(scene, grid, args.eps, options=dict(args.solver, pf_start='sharp'), checks=True)
     except (RuntimeError, UsageError) as e:
         say(f"-- {family} c0 {c0:g}: no start ({e})")
         return dict(described, ends=[f"no start ({e})"], time=time.perf_counter() - t0)
@@ -240,7 +241,7 @@ def trace(family, c0, args, comm, say):
     for direction in directions if start.converged else []:
         last, stretch = time.perf_counter(), []
         for res in pf.continuation(start, 'reduced_volume', direction * args.ds, args.steps,
-                                   options=args.solver, switch=switched):
+                                   options=args.solver, switch=switched, checks=True):
             now = time.perf_counter()
             p = dict(point(res, now - last), arclength=res.attrs['arclength'],
                      direction=direction)
@@ -308,7 +309,7 @@ def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_M
         else:
             return None, farthest, False
         ds /= REFINE
-    res.attrs.update(pf.api.phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
+    res.attrs.update(phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
                                                res.phi, res.attrs))
     return res, value, jumped
 

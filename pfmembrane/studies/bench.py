@@ -30,8 +30,8 @@ import h5py
 import numpy as np
 
 from pfmembrane.studies import launch
-from pfmembrane import scenes as paper
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane import paper
+from pfmembrane.paper import PAPER_BOX
 
 # The paper's finest uniform grid (296,344 nodes) per eps, and the sharp interface.
 BRANCH = {'discocyte': 'oblate', 'dumbbell': 'prolate'}
@@ -187,7 +187,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
     n : int
         Requested node count of `nodes.uniform`.
     box, gamma, cutoff, degree
-        As for `discretization.Grid`.
+        As for `discretization.Discretization`.
 
     Returns
     -------
@@ -232,7 +232,7 @@ def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
         setattr(module, name, timed(k, fn, part))
     try:
         t = time.perf_counter()
-        grid = discretization.Grid(comm, xy, box, gamma=gamma, cutoff=cutoff, degree=degree)
+        grid = discretization.Discretization(comm, xy, box, gamma=gamma, cutoff=cutoff, degree=degree)
         total = time.perf_counter() - t
     finally:
         for (module, name, _), fn in zip(watched, originals):

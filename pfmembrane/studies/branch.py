@@ -39,7 +39,7 @@ from pfmembrane.kernels.nodes import nodal_spacing, uniform
 from pfmembrane.io.options import BRANCHES
 from pfmembrane.studies.sequence import iterations, option_of
 from pfmembrane.analysis.sizing import required_box
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.paper import PAPER_BOX
 
 SCENE = os.path.join('options', 'branch', '{}.opts')
 
@@ -120,13 +120,14 @@ def run(branch, vs, box, args):
         status), ``message`` (the run's own line on stderr when it failed) and
         ``written`` (whether `path` is a checkpoint of this step).
     """
-    from pfmembrane import api, run as runs
+    from pfmembrane import api
+    from pfmembrane.cli import runner
     from pfmembrane.io import options
     PETSc = api.petsc(sys.argv[:1])
     say = PETSc.Sys.Print
     scene = SCENE.format(branch)
     n_nodes = len(uniform(box, args.nodes))
-    steps, parent, rerun, cache = [], '', args.force, runs.Cache()
+    steps, parent, rerun, cache = [], '', args.force, runner.Cache()
     solved = []  # (v, result) of the steps solved here, for the secant predictor
     for v in vs:
         path = os.path.join(args.out, branch, f"v{v:g}.h5")
@@ -149,10 +150,10 @@ def run(branch, vs, box, args):
                 predicted = api.predict(r0, r1, (v - v1) / (v1 - v0))
             try:
                 table_ = options.Table.from_files(scene, args=line)
-                res, _ = runs.execute(options.read(table_), PETSc.COMM_WORLD, say,
-                                      runs.solver_options(table_), prefix=None, cache=cache,
+                res, _ = runner.execute(options.read(table_), PETSc.COMM_WORLD, say,
+                                      runner.solver_options(table_), prefix=None, cache=cache,
                                       start=predicted)
-                runs.summary(res, path, say)
+                runner.summary(res, path, say)
                 if res.converged:
                     solved.append((v, res))
                 step['status'], step['message'] = res.status, res.message

@@ -27,7 +27,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from pfmembrane.analysis import sharp
-from pfmembrane.scenes import paper_spacing
+from pfmembrane.paper import paper_spacing
 from pfmembrane.studies import launch
 from pfmembrane.studies.sequence import iterations
 
@@ -104,7 +104,7 @@ def follow(branch, vs, args, say):
             options = dict(args.solver, pf_stage1='none')
         else:  # the sharp shape's profile: on its branch from the first Newton step
             start, options = None, dict(args.solver, pf_start='sharp')
-        res = pf.solve(scene, grid, args.eps, start=start, options=options)
+        res = pf.solve(scene, grid, args.eps, start=start, options=options, checks=True)
         rows.append(dict(v=v, attrs=res.attrs, wall=time.perf_counter() - t0))
         say(row(rows[-1]))
         if not res.converged or res.attrs.get('topology') != SPHERE:

@@ -24,7 +24,7 @@ from pfmembrane.io import checkpoint
 from pfmembrane.analysis import limit, sizing
 from pfmembrane.kernels.functionals import F_E
 from pfmembrane.io.options import Params
-from pfmembrane.scenes import PAPER_BOX
+from pfmembrane.paper import PAPER_BOX
 
 VARIANTS = ('paper box', 'paper half box', 'auto box', 'auto half box')
 

@@ -44,7 +44,7 @@ from pfmembrane.studies.bench import machine, machine_line
 from pfmembrane.io.checkpoint import CheckpointError
 from pfmembrane.analysis.limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
 from pfmembrane.studies.sequence import converged
-from pfmembrane.scenes import SCENE_FILES as SCENE
+from pfmembrane.paper import SCENE_FILES as SCENE
 
 # Grid and eps of every case unless its options say otherwise (later options win).
 GRID = ('-pf_nodes', '3000', '-pf_box', '1.5,2', '-pf_eps', '0.06')

@@ -48,9 +48,9 @@ SPLIT_OPTIONS = {'pf_stage1_rtol': 1e-6, 'stage2_snes_max_it': 0}
 
 def clifford(eps, nodes, out, cache):
     """The checkpoint of one Clifford row, solved unless it exists."""
-    from pfmembrane import run as runs
+    from pfmembrane.cli import runner
     path = os.path.join(out, f"clifford_n{nodes}_eps{eps:g}.h5")
-    return runs.solved(CLIFFORD, ['-pf_nodes', str(nodes), '-pf_eps', str(eps)], path,
+    return runner.solved(CLIFFORD, ['-pf_nodes', str(nodes), '-pf_eps', str(eps)], path,
                        cache).checkpoint()
 
 
@@ -61,7 +61,7 @@ def budded(eps, nodes, out):
     checkpoint's `continuation_points` counts the points on the way and its
     `wall_time` is the whole path's."""
     import pfmembrane as pf
-    from pfmembrane.scenes import paper_spacing
+    from pfmembrane.paper import paper_spacing
     path = os.path.join(out, f"budding_n{nodes}_eps{eps:g}.h5")
     if os.path.exists(path):
         return pf.read(path).checkpoint()
@@ -69,9 +69,9 @@ def budded(eps, nodes, out):
     scene = pf.Scene(reduced_volume=BUD_V, c0=BUD_FROM, radius=RADIUS, box=BUD_BOX,
                      branch='prolate', symmetric=True)
     grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, BUD_BOX))
-    last = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'})
+    last = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'}, checks=True)
     points = 0
-    for last in pf.continuation(last, 'c0', BUD_DS, 100, ds_max=4 * BUD_DS):
+    for last in pf.continuation(last, 'c0', BUD_DS, 100, ds_max=4 * BUD_DS, checks=True):
         points += 1
         if last.attrs['c0'] > BUD_C0:
             break
@@ -79,7 +79,7 @@ def budded(eps, nodes, out):
         raise RuntimeError(f"budding at eps {eps:g}: the continuation in C0 stopped at "
                            f"{last.attrs['c0']:g}, short of {BUD_C0:g}")
     res = pf.solve(dataclasses.replace(scene, c0=BUD_C0), grid, eps, start=last,
-                   options={'pf_stage1': 'none'})
+                   options={'pf_stage1': 'none'}, checks=True)
     res.attrs.update(continuation_points=points, wall_time=time.perf_counter() - t0)
     res.save(path)
     return res.checkpoint()
@@ -100,7 +100,7 @@ def split(eps, nodes, out):
     C0 = sqrt 2 / R with SPLIT_OPTIONS; read back if it exists. Collective."""
     import pfmembrane as pf
     from pfmembrane.kernels import initial
-    from pfmembrane.scenes import paper_spacing
+    from pfmembrane.paper import paper_spacing
     path = os.path.join(out, f"split_n{nodes}_eps{eps:g}.h5")
     if os.path.exists(path):
         return pf.read(path).checkpoint()
@@ -113,7 +113,7 @@ def split(eps, nodes, out):
                                                    np.array([-height, height]), scene.zc), eps)
     start = pf.Result(grid.nodes, phi, dict(eps=eps, symmetric=1, converged=1,
                                             nu_area=0.0, nu_volume=0.0))
-    res = pf.solve(scene, grid, eps, start=start, options=SPLIT_OPTIONS)
+    res = pf.solve(scene, grid, eps, start=start, options=SPLIT_OPTIONS, checks=True)
     res.save(path)
     return res.checkpoint()
 
@@ -146,9 +146,9 @@ def main(argv=None):
     ap.add_argument('--only', choices=sorted(ROWS), help='one limit only')
     args = ap.parse_args(argv)
     launch.ensure_ranks(args.np, 'pfmembrane.studies.limits', sys.argv[1:])
-    from pfmembrane import run as runs
+    from pfmembrane.cli import runner
     from mpi4py import MPI
-    cache, root = runs.Cache(), MPI.COMM_WORLD.Get_rank() == 0
+    cache, root = runner.Cache(), MPI.COMM_WORLD.Get_rank() == 0
     os.makedirs(args.out, exist_ok=True)
     lines = [f"{MPI.COMM_WORLD.Get_size()} MPI ranks, {os.cpu_count()} cores. Regenerate: "
              "`make limits` (`python -m pfmembrane.studies.limits`).", '']

@@ -15,8 +15,8 @@ the rotation about y: an exactly translation-invariant discretization would give
 discretization and above all by the support cut-off (runs/modes/README.md). In m = 0 it
 is the translation along the axis, which the moment constraint does not make vanish but
 pins at a finite eigenvalue (moving the vesicle then costs moving the bulk values of
-phi to keep M = 0): it mixes with the shape modes odd in z. See `pfmembrane.kernels.modes`
-for the formulas and the treatment of the axis, `pfmembrane.parallel.modes` for the
+phi to keep M = 0): it mixes with the shape modes odd in z. See `pfmembrane.kernels.azimuthal`
+for the formulas and the treatment of the axis, `pfmembrane.parallel.stability` for the
 solvers. PETSc options reach the eigensolver under `-modes_` (`-modes_eps_tol 1e-10`,
 `-modes_st_mat_mumps_icntl_7 0`).
 
@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from pfmembrane.kernels.modes import RIGID
+from pfmembrane.kernels.azimuthal import RIGID
 
 
 def analyse(result, grid, modes, nev, say):

@@ -82,7 +82,7 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
     the grid keeps the up-down symmetry (the full-box CVT does not: its prolate is up-down
     asymmetric, runs/pears/README.md). Collective."""
     import pfmembrane as pf
-    from pfmembrane.scenes import paper_spacing
+    from pfmembrane.paper import paper_spacing
     t0 = time.perf_counter()
     box = atlas.box_of('pear', C_TO, eps)
     scene = pf.Scene(reduced_volume=v, c0=c_from / (2 * RADIUS), radius=RADIUS, box=box,
@@ -91,15 +91,15 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         half = dataclasses.replace(scene, symmetric=True)
         start = pf.solve(half, pf.Grid.uniform(half, nodes=paper_spacing(nodes, box),
                                                gamma=gamma), coarse,
-                         options={'pf_start': 'sharp'})
+                         options={'pf_start': 'sharp'}, checks=True)
         unfolded = pf.solve(half, pf.adapt(start, ADAPT_F, gamma=gamma), eps,
-                            start=start).unfolded()
+                            start=start, checks=True).unfolded()
         grid = pf.Grid.of(unfolded)
         # a converged state on these nodes, but for the cells at the plane: Newton alone
-        start = pf.solve(scene, grid, eps, start=unfolded, options={'pf_stage1': 'none'})
+        start = pf.solve(scene, grid, eps, start=unfolded, options={'pf_stage1': 'none'}, checks=True)
     else:
         grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box), gamma=gamma)
-        start = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'})
+        start = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'}, checks=True)
     say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
     args = types.SimpleNamespace(ds=DS / (2 * RADIUS), steps=STEPS, solver={})
     folds = []
@@ -127,9 +127,9 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         + (", where its corrector left it for a pear: followed on from there" if jumped else ''))
     if jumped:  # on the pears already, going the way the corrector went
         pears = itertools.chain([res], pf.continuation(
-            res, 'c0', math.copysign(args.ds, res.attrs['dp_ds']), STEPS - 1))
+            res, 'c0', math.copysign(args.ds, res.attrs['dp_ds']), STEPS - 1, checks=True))
     else:
-        pears = pf.continuation(res, 'c0', args.ds, STEPS, switch=True)
+        pears = pf.continuation(res, 'c0', args.ds, STEPS, switch=True, checks=True)
     for p in pears:
         out['eigenvalue'] = float(res.attrs.get('critical_eigenvalue', math.nan))
         s = state(p)

@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 
 from pfmembrane.studies import launch
-from pfmembrane.scenes import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
+from pfmembrane.paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
 
 
 def option_of(step, name):
@@ -64,11 +64,12 @@ def run(steps, scene, force=False):
     A step whose restart checkpoint did not converge is not run; the steps
     that do not depend on it still are.
     """
-    from pfmembrane import api, run as runs
+    from pfmembrane import api
+    from pfmembrane.cli import runner
     from pfmembrane.io import options
     PETSc = api.petsc(sys.argv[:1])
     say = PETSc.Sys.Print
-    cache, walls = runs.Cache(), {}
+    cache, walls = runner.Cache(), {}
     for step in steps:
         out = output_of(step)
         if not force and converged(out):
@@ -82,9 +83,9 @@ def run(steps, scene, force=False):
         t0 = time.perf_counter()
         try:
             table = options.Table.from_files(scene, step)
-            res, _ = runs.execute(options.read(table), PETSc.COMM_WORLD, say,
-                                  runs.solver_options(table), prefix=None, cache=cache)
-            runs.summary(res, out, say)
+            res, _ = runner.execute(options.read(table), PETSc.COMM_WORLD, say,
+                                  runner.solver_options(table), prefix=None, cache=cache)
+            runner.summary(res, out, say)
             status = res.status
             if status:
                 say(f"pfmembrane: {res.message}")

@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from pfmembrane.io.options import BRANCHES
-from pfmembrane.scenes import paper_spacing
+from pfmembrane.paper import paper_spacing
 from pfmembrane.studies import launch
 from pfmembrane.studies.sequence import iterations
 
@@ -79,7 +79,7 @@ def follow(name, args, comm, say):
         say(f"-- {name}: v {v:g} c0 {c0:g} (C0 {scene.c0:g}), box {box[0]:g}x{box[1]:g}")
         t0 = time.perf_counter()
         options = dict(args.solver, **({'pf_stage1': 'none'} if previous else {}))
-        res = pf.solve(scene, grid, args.eps, start=previous, options=options)
+        res = pf.solve(scene, grid, args.eps, start=previous, options=options, checks=True)
         if not res.converged:
             say(f"{name}: v {v:g} c0 {c0:g} did not converge ({res.message}); the series stops")
             rows.append(dict(v=v, c0=c0, attrs=res.attrs, wall=time.perf_counter() - t0))

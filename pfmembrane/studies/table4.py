@@ -16,7 +16,7 @@ import sys
 
 import h5py
 
-from pfmembrane.scenes import FINEST, SHARP, SHARP_ERROR
+from pfmembrane.paper import FINEST, SHARP, SHARP_ERROR
 from pfmembrane.studies.sequence import converged, grid_name, output_of, paper_grid, steps_of
 
 COLUMNS = (0.03, 0.025, 0.02, 0.015, 0.01, 0.007, 0.005)

@@ -15,14 +15,14 @@ import sys
 
 from pfmembrane.studies import launch
 from pfmembrane.studies.sequence import iterations
-from pfmembrane.scenes import FINEST, SCENE_FILES, UNIFORM
+from pfmembrane.paper import FINEST, SCENE_FILES, UNIFORM
 
 
 def run(branch, nodes, eps, out, cache):
     """The checkpoint attributes of one entry, solved unless its checkpoint exists."""
-    from pfmembrane import run as runs
+    from pfmembrane.cli import runner
     path = os.path.join(out, f"{branch}_n{nodes}_eps{eps:g}.h5")
-    return runs.solved(SCENE_FILES[branch], ['-pf_nodes', str(nodes), '-pf_eps', str(eps)],
+    return runner.solved(SCENE_FILES[branch], ['-pf_nodes', str(nodes), '-pf_eps', str(eps)],
                        path, cache).attrs
 
 
@@ -34,9 +34,9 @@ def main(argv=None):
     ap.add_argument('--branches', default='oblate,prolate')
     args = ap.parse_args(argv)
     launch.ensure_ranks(args.np, 'pfmembrane.studies.tables', sys.argv[1:])
-    from pfmembrane import run as runs
+    from pfmembrane.cli import runner
     from mpi4py import MPI
-    cache, root = runs.Cache(), MPI.COMM_WORLD.Get_rank() == 0
+    cache, root = runner.Cache(), MPI.COMM_WORLD.Get_rank() == 0
     os.makedirs(args.out, exist_ok=True)
     rows = ['| branch | nodes | eps | E (pfmembrane) | E paper (same grid) | diff | E paper (296,344) '
             '| diff | nu_A | nu_V | max phi | its (1+2) | converged | wall s | peak MB/rank |',

@@ -8,6 +8,7 @@ import pytest
 from mpi4py import MPI
 
 from pfmembrane.kernels import adapt, maxent, nodes
+from pfmembrane.parallel.adapt import relocate
 from pfmembrane.kernels.basis import folded_basis, locality
 
 BOX, EPS = (1.0, 1.4), 0.05
@@ -24,7 +25,7 @@ def _phi(xy, radius=0.45):
 def relocated():
     xy = nodes.uniform(BOX, 900)
     phi = _phi(xy)
-    new, new_phi, info = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)
+    new, new_phi, info = relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)
     return xy, phi, new, new_phi, info
 
 
@@ -62,7 +63,7 @@ def test_phi_is_the_old_interpolant_at_the_new_nodes(relocated):
 def test_same_grid_on_every_rank_count(relocated, distributed):
     xy, phi, new, _, _ = relocated
     comm = MPI.COMM_WORLD
-    one = adapt.relocate(MPI.COMM_SELF, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)[0]
+    one = relocate(MPI.COMM_SELF, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0)[0]
     assert np.array_equal(one, new)
     assert all(np.array_equal(other, new) for other in comm.allgather(new))
 
@@ -71,10 +72,10 @@ def test_nodes_along_a_branch_gather_at_every_interface(relocated):
     # A second circle, 0.15 larger: the density is the larger |grad phi_h| of the two.
     xy, phi, alone, alone_phi, _ = relocated
     bigger = _phi(xy, 0.6)
-    same = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
+    same = relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
                           along=phi[None])
     assert np.array_equal(same[0], alone) and np.array_equal(same[1], alone_phi)
-    new, new_phi, _ = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6,
+    new, new_phi, _ = relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6,
                                      100.0, along=bigger[None])
     assert np.array_equal(new_phi, adapt.transfer(xy, phi, locality(xy, 0.8, 3), 1e-6, new, BOX))
     h = nodes.nodal_spacing(new)
@@ -100,7 +101,7 @@ def test_a_band_evens_the_spacing_across_the_interface(relocated):
     # Spacing in rings about the circle: within EPS / 2 of it against 1.5-2 EPS out.
     # Without a band the nodes grade across the interface's tanh profile.
     xy, phi, graded, _, _ = relocated
-    flat = adapt.relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
+    flat = relocate(MPI.COMM_WORLD, xy, phi, BOX, locality(xy, 0.8, 3), 1e-6, 100.0,
                           band=2 * EPS)[0]
 
     def ratio(new):

@@ -8,8 +8,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from pfmembrane.kernels import nodes
-from pfmembrane.parallel.assembly import Problem
-from pfmembrane.parallel.discretization import Grid
+from pfmembrane.parallel.assembly import Assembly
+from pfmembrane.parallel.discretization import Discretization
 from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
 
 BOX, R, EPS = (1.0, 1.4), 0.4, 0.12
@@ -24,9 +24,9 @@ def problem(request):
     # Graded spacing: the derivatives must hold with a per-node beta_a.
     xy[:, 0] = BOX[0] * (xy[:, 0] / BOX[0]) ** 1.3
     plane = BOX[1] / 2 if half else None
-    grid = Grid(comm, xy, BOX, gamma=0.8, cutoff=1e-6, degree=4, plane=plane)
+    grid = Discretization(comm, xy, BOX, gamma=0.8, cutoff=1e-6, degree=4, plane=plane)
     A0, V0 = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
-    P = Problem(grid, EPS, 1.0, c0, (A0, V0), BOX[1] / 2)
+    P = Assembly(grid, EPS, 1.0, c0, (A0, V0), BOX[1] / 2)
     x = P.create_vec()
     lay = grid.layout
     own = lay.order[lay.start:lay.start + lay.nowned]

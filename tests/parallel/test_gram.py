@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from pfmembrane.kernels import nodes
-from pfmembrane.parallel.discretization import Grid
+from pfmembrane.parallel.discretization import Discretization
 
 
 @pytest.fixture(scope='module', params=[1, 4])
@@ -16,7 +16,7 @@ def grid(request):
     box = (1.0, 1.4)
     xy = nodes.uniform(box, 600)
     xy[:, 0] = box[0] * (xy[:, 0] / box[0]) ** 1.5  # graded: supports of many sizes
-    return Grid(PETSc.COMM_WORLD, xy, box, gamma=0.8, cutoff=1e-6, degree=request.param)
+    return Discretization(PETSc.COMM_WORLD, xy, box, gamma=0.8, cutoff=1e-6, degree=request.param)
 
 
 def test_gram_equals_sparse_triple_products(grid):

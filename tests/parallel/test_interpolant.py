@@ -9,8 +9,8 @@ from petsc4py import PETSc
 from scipy.integrate import quad
 
 from pfmembrane.kernels import nodes
-from pfmembrane.parallel.assembly import Problem
-from pfmembrane.parallel.discretization import Grid
+from pfmembrane.parallel.assembly import Assembly
+from pfmembrane.parallel.discretization import Discretization
 from pfmembrane.kernels.functionals import F_A
 
 R, EPS, BOX, ZC = 0.4, 0.04, (0.65, 1.3), 0.65
@@ -35,8 +35,8 @@ def exact_area_volume():
 def sampled(n):
     comm = PETSc.COMM_WORLD
     xy = nodes.uniform(BOX, n)
-    grid = Grid(comm, xy, BOX)
-    P = Problem(grid, EPS, 1.0, 0.0, (0, 0), ZC)
+    grid = Discretization(comm, xy, BOX)
+    P = Assembly(grid, EPS, 1.0, 0.0, (0, 0), ZC)
     x = P.create_vec()
     lay = grid.layout
     x.setArray(tanh_sphere(xy[lay.order[lay.start:lay.start + lay.nowned]]))
@@ -91,7 +91,7 @@ def test_axis_is_a_symmetry_line():
 def test_laplacian_near_the_axis_is_as_accurate_as_inside():
     """Lap = u_rr + u_r / r + u_zz of a smooth even field: no loss of accuracy at r -> 0."""
     xy = nodes.uniform(BOX, 2400)
-    grid = Grid(PETSc.COMM_WORLD, xy, BOX)
+    grid = Discretization(PETSc.COMM_WORLD, xy, BOX)
     o, lay = grid.ops, grid.layout
     f = lambda r, z: np.exp(-r * r) * np.cos(3 * z)
     lap = lambda r, z: (4 * r * r - 4 - 9) * np.exp(-r * r) * np.cos(3 * z)

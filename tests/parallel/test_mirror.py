@@ -7,8 +7,8 @@ import pytest
 from petsc4py import PETSc
 
 from pfmembrane.kernels import nodes
-from pfmembrane.parallel.assembly import Problem
-from pfmembrane.parallel.discretization import Grid
+from pfmembrane.parallel.assembly import Assembly
+from pfmembrane.parallel.discretization import Discretization
 from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
 
 BOX, R, EPS, N = (1.5, 2.0), 0.4, 0.08, 1100
@@ -18,8 +18,8 @@ A0, V0 = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
 def functionals(half, branch):
     xy = nodes.uniform(BOX, N, half=half)
     plane = BOX[1] / 2 if half else None
-    grid = Grid(PETSc.COMM_WORLD, xy, BOX, plane=plane)
-    P = Problem(grid, EPS, 1.0, 0.0, (A0, V0), BOX[1] / 2)
+    grid = Discretization(PETSc.COMM_WORLD, xy, BOX, plane=plane)
+    P = Assembly(grid, EPS, 1.0, 0.0, (A0, V0), BOX[1] / 2)
     x = P.create_vec()
     lay = grid.layout
     a, c = spheroid_axes(A0, V0, branch)

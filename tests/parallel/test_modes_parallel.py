@@ -1,4 +1,4 @@
-"""The mode analysis (pfmembrane.parallel.modes) on COMM_WORLD agrees with one rank:
+"""The mode analysis (pfmembrane.parallel.stability) on COMM_WORLD agrees with one rank:
 the same index, eigenvalues and modes for m = 0 ... 3.
 
 Under `mpiexec -n 2` only (skipped on one rank).
@@ -8,7 +8,7 @@ import pytest
 from petsc4py import PETSc
 
 import pfmembrane as pf
-from pfmembrane.parallel.modes import ModeAnalysis
+from pfmembrane.parallel.problem import Problem
 
 pytestmark = pytest.mark.slow
 
@@ -17,12 +17,13 @@ EPS = 0.06
 
 
 def _spectra(grid, result):
-    a = ModeAnalysis(grid, SCENE, EPS, result.phi, result.nu[0])
+    problem = Problem(grid, SCENE, EPS, 'modes_test_')
+    a = problem.modes(result.phi, result.nu[0])
     try:
         spectra = [a.spectrum(m) for m in range(4)]
         modes = [grid.discrete.layout.nodal(s.vectors[0], 0.0) for s in spectra]
     finally:
-        a.destroy()
+        problem.close()
     return spectra, modes
 
 

@@ -16,7 +16,7 @@ grid = pf.Grid(sc, nodes, gamma=gamma)
 pf.api.petsc().Sys.Print('smoothed spacing, quantiles 0 .05 .5 .75 .95 1:',
                          np.quantile(nodal_spacings(nodes, 3, None)[1], [0, 0.05, 0.5, 0.75, 0.95, 1]))
 t = time.time()
-r = pf.solve(sc, grid, 0.01, options={'pf_start': 'sharp', 'pf_stage1_rtol': 1e-5})
+r = pf.solve(sc, grid, 0.01, options={'pf_start': 'sharp', 'pf_stage1_rtol': 1e-5}, checks=True)
 pf.api.petsc().Sys.Print(f, gamma, w, grid.n_nodes, r.energy, r.attrs['level_set_energy'],
                          r.attrs['nu_area'], r.attrs['nu_volume'], time.time() - t,
                          'max |phi_a|', np.abs(r.phi).max())

@@ -46,5 +46,5 @@ else:
                      branch='stomatocyte')
     eps, options = 0.01, {'pf_start': 'sharp'}
 say(f"grid of {grid.n_nodes} nodes built")
-pf.solve(scene, grid, eps, options=options)
+pf.solve(scene, grid, eps, options=options, checks=True)
 say("solved")

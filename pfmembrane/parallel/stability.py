@@ -2,7 +2,7 @@
 PETSc matrices, their index by MUMPS inertia, their lowest eigenpairs by SLEPc.
 
 Per mode m the generalized problem H_m psi = lambda M_m psi is solved, M_m the
-L2 mass of the 3D perturbation psi cos(m theta) (`kernels.modes`): lambda is
+L2 mass of the 3D perturbation psi cos(m theta) (`kernels.azimuthal`): lambda is
 the second variation of L = E - nu . (c - c0) per unit squared L2 norm. For
 m = 0 the perturbation must keep A, V (and M on the full box): the problem is
 bordered, [[H_0, C^T], [C, 0]] with B = [[M_0, 0], [0, 0]], whose inertia
@@ -17,34 +17,15 @@ assembled: it enters K as one more weight of the Gram products that build
 H_m, and SLEPc applies it as B0^T diag(t_m w r^(2m)) B0, a shell matrix (two
 sparse products per application, against a Gram product per m).
 """
-import atexit
 import time
-import weakref
 from typing import NamedTuple
 
 import numpy as np
 from petsc4py import PETSc
 
-from pfmembrane.kernels import modes as kernel
-from pfmembrane.parallel.assembly import Problem
+from pfmembrane.kernels import azimuthal as kernel
 
-# MUMPS defaults under the prefix: inertia that is right in parallel (no
-# ScaLAPACK root), null-pivot detection (which PETSc's MatGetInertia requires
-# to count zero pivots; its threshold is ~1e-21 |K|, only exact singularity),
-# and QAMD ordering (Debian's MUMPS has no METIS; PORD is slow).
-MUMPS_DEFAULTS = {'st_mat_mumps_icntl_13': '1', 'st_mat_mumps_icntl_24': '1',
-                  'st_mat_mumps_icntl_7': '6'}
 MAX_SHIFTS = 40  # factorizations per m, should the shift have to move far below 0
-# Analyses not destroyed yet. A shell matrix whose Python context is torn down
-# with the interpreter crashes the process (SEGV at exit, seen on 3.18): these
-# are destroyed by a Python exit hook, which runs before petsc4py finalizes.
-_LIVE = weakref.WeakSet()
-
-
-@atexit.register
-def _destroy_live():
-    for analysis in list(_LIVE):
-        analysis.destroy()
 
 
 class Spectrum(NamedTuple):
@@ -53,7 +34,7 @@ class Spectrum(NamedTuple):
     ascending, `vectors` their modes as distributed Vecs of chi (psi = r^m chi,
     M_m-normalized: t_m int psi^2 r dr dz = 1), `rigid` the fraction of each
     mode's squared norm in the span of mode m's rigid motions
-    (`kernels.modes.ModeForms.rigid`: m = 0 and 1; NaN for other m), `time`
+    (`kernels.azimuthal.ModeForms.rigid`: m = 0 and 1; NaN for other m), `time`
     the seconds spent on this m (assembly, factorizations, eigensolve)."""
     m: int
     index: int
@@ -86,21 +67,24 @@ class _Mass:
 
 
 class ModeAnalysis:
-    """The mode Hessians of one converged state on its grid. Collective.
+    """The mode Hessians of one converged state of a `parallel.problem.Problem`
+    (`Problem.modes`, which destroys it when it closes). Collective.
 
-    `grid` is a `pfmembrane.api.Grid`, `scene` and `eps` those of the state,
-    `phi` its nodal values at every node, `nu_area` its tension, `nev` the
-    eigenpairs wanted per m. The eigensolver reads its options under `prefix`
-    (`-modes_eps_tol`, `-modes_st_mat_mumps_icntl_7`); the MUMPS defaults set
-    there are removed by `destroy`. The per-triangle blocks of the four
-    operators (`Gram.blocks`) are taken here, once for every m.
+    `phi` is the state's nodal values at every node, `nu_area` its tension,
+    `nev` the eigenpairs wanted per m. The eigensolver reads its options under
+    the problem's prefix + 'modes_' (`-PREFIXmodes_eps_tol`), where the MUMPS
+    LDL^T defaults go (`-PREFIXmodes_st_mat_mumps_icntl_7`). The per-triangle
+    blocks of the four operators (`Gram.blocks`) are taken here, once for
+    every m.
     """
 
-    def __init__(self, grid, scene, eps, phi, nu_area, nev=3, prefix='modes_'):
+    def __init__(self, owner, phi, nu_area, nev=3):
+        grid, scene, eps = owner.grid, owner.scene, owner.eps
         d = grid.discrete
-        self.comm, self.prefix, self.layout, self.nev = grid.comm, prefix, d.layout, nev
+        self.prefix = owner.prefix + 'modes_'
+        self.comm, self.layout, self.nev = grid.comm, d.layout, nev
         self.half = d.plane is not None
-        self.problem = Problem(d, eps, scene.k, scene.c0, (scene.area, scene.volume), scene.zc)
+        self.problem = owner.assembly
         lay = self.layout
         x = self.problem.create_vec()
         x.setArray(np.asarray(phi)[lay.order[lay.start:lay.start + lay.nowned]])
@@ -117,13 +101,7 @@ class ModeAnalysis:
         P = d.gram.pattern
         self._pattern = (P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType))
         self._solver, self._previous = None, []
-        _LIVE.add(self)
-        self.defaults = []
-        db = PETSc.Options()
-        for key, value in MUMPS_DEFAULTS.items():
-            if not db.hasName(prefix + key):
-                db.setValue(prefix + key, value)
-                self.defaults.append(prefix + key)
+        owner.options.mumps('modes_st_')
 
     def assemble(self, m, shift=0.0):
         """K = [[H_m - shift M_m, C^T], [C, 0]] (m = 0) or [[H_m - shift M_m,
@@ -302,14 +280,10 @@ class ModeAnalysis:
         return np.array(out)
 
     def destroy(self):
-        """Free the eigensolver and the mass operator, and remove the MUMPS
-        defaults from the database. Collective; at exit if not called before."""
-        if self not in _LIVE:
-            return
-        _LIVE.discard(self)
+        """Free the eigensolver and the mass operator. Collective."""
         if self._solver is not None:
             self._solver.destroy()
-        self.B.destroy()
-        db = PETSc.Options()
-        for key in self.defaults:
-            db.delValue(key)
+            self._solver = None
+        if self.B is not None:
+            self.B.destroy()
+            self.B = None

@@ -13,6 +13,7 @@ import numpy as np
 
 from pfmembrane import api
 from pfmembrane.io import options
+from pfmembrane.starts import check_fits
 
 
 @dataclass
@@ -29,7 +30,7 @@ def start_of(p, comm, cache, start=None):
     if not p.restart:
         scene = api.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
         scene = scene.sized(p.eps)
-        options.check_fits(scene, p.eps)
+        check_fits(scene, p.eps)
         return None, scene
     start = start or cache.results.get(os.path.abspath(p.restart))
     if start is None or (p.box != 'auto' and not np.allclose(start.attrs['box'], p.box)):
@@ -63,13 +64,16 @@ def grid_of(p, scene, start, comm, cache):
     return cache.grids[key]
 
 
-def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=None):
-    """Solve the run of `p` and write its checkpoint. Collective.
+def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, start=None,
+            modes_options=None):
+    """Solve the run of `p` and write its checkpoint, with the phase-field
+    checks and, with -pf_modes, the stability. Collective.
 
     `solve_options` (command-line names without the dash) go to the solve
-    under `prefix`; the command line leaves them in the global database.
-    `start` (a `Result`, such as `api.predict`'s) replaces the restart's own.
-    Returns (result, checkpoint path).
+    under `prefix` (by default one of its own), `modes_options` to the mode
+    analysis; the solve prints a line per stage. `start` (a `Result`, such as
+    `api.predict`'s) replaces the restart's own. Returns (result, checkpoint
+    path).
     """
     cache = cache if cache is not None else Cache()
     t_start = time.perf_counter()
@@ -82,15 +86,24 @@ def execute(p, comm, print_fn, solve_options=None, prefix='', cache=None, start=
              f"stage1={p.stage1} ranks={comm.getSize()}"
              f"{' half box (mirror z=' + format(scene.zc, 'g') + ')' if p.symmetric else ''}")
     grid = grid_of(p, scene, start, comm, cache)
-    fresh = grid._setup_pending
+    fresh = grid.setup_pending
+    info = grid.adapt_info
+    if fresh and info:
+        band = f" band={info['band']:g}" if info['band'] else ''
+        print_fn(f"adapt: CVT f={info['f']:g}{band}"
+                 f" of {info['of']}: {info['iterations']} Lloyd steps (movement "
+                 f"{info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> {info['h_min'][1]:.4g}, "
+                 f"raster {info['raster'][1]}x{info['raster'][0]}, {info['time']:.2f} s")
     t_setup = time.perf_counter() - t_start
     d = grid.discrete
     print_fn(f"grid: {grid.n_nodes} nodes ({d.layout.nglobal} free), {d.nquad} quadrature "
              f"points, eps_min {grid.eps_min:.4g}, set-up {t_setup:.2f} s"
              f"{'' if fresh else ' (grid reused)'}")
-    res = api.solve(scene, grid, p.eps, start=start, options=solve_options, prefix=prefix)
+    res = api.solve(scene, grid, p.eps, start=start,
+                    options={**(solve_options or {}), 'pf_summary': True}, prefix=prefix,
+                    checks=True)
     if p.modes >= 0 and res.converged:
-        api.stability(res, p.modes)
+        api.stability(res, p.modes, options=modes_options, prefix=prefix)
     # The run's own clocks: reading the restart and adapting count too.
     res.attrs.update(wall_time=time.perf_counter() - t_start, time_setup=t_setup,
                      parent=p.restart)
@@ -144,6 +157,8 @@ def summary(res, output, print_fn):
             f"warning: phi_h reaches {a['boundary_phi']:.4f} one eps inside the box edges, "
             f"which hold -1: the box {box[0]:g}x{box[1]:g} constrains the vesicle "
             "(enlarge -pf_box, or -pf_box auto)")
+    if 'sharp_note' in a:
+        print_fn(f"sharp interface: {a['sharp_note']}")
     if 'topology' in a:
         before = a.get('start_topology', '')
         print_fn(f"topology: phi_h = 0 is {a['topology']}"

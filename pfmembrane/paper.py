@@ -1,4 +1,4 @@
-"""Scene data: the paper's box, its scene files and its published energies
+"""The paper's data: its box, its scene files and its published energies
 (Tables 1-5) that runs are compared with.
 
 Keys: scene branch ('oblate' discocyte, 'prolate' dumbbell), grid (node
@@ -46,3 +46,8 @@ SHARP_ERROR = {  # Table 4: relative error (%) of adapted discocytes against SHA
     24597: {0.03: 3.37, 0.025: 2.51, 0.02: 1.69, 0.015: 1.12, 0.01: 0.63, 0.005: 0.43},
     FINEST: {0.03: 3.37, 0.025: 2.50, 0.02: 1.72, 0.015: 1.07, 0.01: 0.65},
 }
+
+# The paper's scene (Section 4: the discocyte of Table 1), the default of every scene:
+# reduced volume v, spontaneous curvature C0, radius R of the sphere of equal area,
+# bending rigidity k, the (r, z) box, the family of the initial guess.
+SCENE = dict(reduced_volume=0.8, c0=0.0, radius=0.4, k=1.0, box=PAPER_BOX, branch='oblate')

@@ -1,0 +1,152 @@
+"""Equilibria and their stability: a solve of a scene on a grid, the
+azimuthal spectra of a solved state. Each runs one `parallel.problem.Problem`,
+which owns its options and PETSc objects and closes with the call."""
+import math
+import resource
+import time
+import warnings
+
+import numpy as np
+from mpi4py import MPI
+
+from pfmembrane.analysis.checks import phase_field_checks
+from pfmembrane.grid import Grid
+from pfmembrane.io.options import UsageError
+from pfmembrane.kernels.azimuthal import RIGID
+from pfmembrane.parallel import petsc
+from pfmembrane.parallel.problem import Problem, next_prefix
+from pfmembrane.result import Result
+from pfmembrane.starts import start_phi
+
+# Log events whose times a result reports: functionals and their derivatives
+# into Vec/Mat, and the linear solves (factorizations included).
+ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
+LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
+
+
+def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False):
+    """The equilibrium shape of `scene` on `grid` at width `eps`. Collective.
+
+    Starts from the scene's initial shape (option `pf_start`,
+    `io.options.STARTS`), or from `start` (a `Result`: on this grid, read from
+    a file, or the parent of an adapted grid). `options` maps
+    command-line names without the dash to values, PETSc's (`stage2_snes_monitor`,
+    `stage1_tao_type`) and the solver's own (`pf_stage1`, `pf_mu`,
+    `pf_stage1_rtol`, `pf_stage1_max_it`, `pf_stage2_rtol`, `pf_monitor`,
+    `pf_force`, `pf_start`, `pf_summary`); they live under the solve's options
+    `prefix` (by default one of its own, so `-PREFIX...` on the command line
+    reaches only this solve) and leave the database as they found it
+    (`parallel.problem.Problem`); those nothing used are warned of and listed
+    in the result's `unused_options`. `checks` runs the phase-field checks of
+    a converged field (`analysis.checks`: the level set's topology and own
+    energy, the sharp-interface shape's).
+
+    Returns a `Result`; one that did not converge has `converged` False and
+    the reason in `message`. Raises `io.options.UsageError` for bad input.
+    """
+    if not grid.fits(scene):
+        raise UsageError(
+            f"the scene (box {scene.box}, {'half' if scene.symmetric else 'full'} box) "
+            f"does not fit the grid (box {grid.box}, {'half' if grid.symmetric else 'full'} box)")
+    if not (math.isfinite(eps) and eps > 0):
+        raise UsageError(f"-pf_eps must be > 0 (got {eps!r})")
+    comm = grid.comm
+    mpi = comm.tompi4py()
+    t0 = time.perf_counter()
+    with Problem(grid, scene, eps, prefix or next_prefix(), options) as problem:
+        under = eps < grid.eps_min
+        if under and not problem.settings.force:
+            raise UsageError(
+                f"eps {eps:g} is below what this grid resolves (eps_min = {grid.eps_min:.4g}); "
+                "use more nodes, an adapted grid, or -pf_force to run anyway")
+        phi0, nu0, solved = start_phi(scene, grid, eps, start, problem.settings.start)
+        x = problem.vec(phi0)
+        # Failures of the solve end in `state`; anything else propagates at once,
+        # with no collective cleanup that a rank still computing would never reach.
+        converged, message, status, vals, stages = problem.solve(x, nu0, solved)
+        phi = problem.nodal(x, -1.0)
+        max_phi = problem.assembly.max_abs_phi(x)
+        nu, stats = problem.nu, problem.solver.stats
+        factorizations = problem.solver.factorizations
+        problem.solver.destroy()
+        unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
+    if unused:
+        warnings.warn(f"solve options never used: {', '.join('-' + k for k in unused)}",
+                      stacklevel=2)
+    setup = grid.setup_time if grid.setup_pending else 0.0
+    adapt_f, adapt_band, adapt_time = (
+        (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
+        if grid.setup_pending and grid.adapt_info else (0.0, 0.0, np.nan))
+    grid.setup_pending = False
+    attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=eps,
+                 k=scene.k, c0=scene.c0, gamma=grid.params['gamma'], nu_area=nu[0],
+                 nu_volume=nu[1], nu_moment=nu[2] if len(nu) == 3 else 0.0,
+                 symmetric=int(scene.symmetric), converged=int(converged),
+                 wall_time=setup + time.perf_counter() - t0, n_procs=comm.getSize(),
+                 cutoff=grid.params['cutoff'], quad_degree=grid.params['quad_degree'],
+                 spacing_smoothing=grid.params['spacing_smoothing'],
+                 spacing_floor=grid.params['spacing_floor'], radius=scene.radius,
+                 reduced_volume=scene.reduced_volume, branch=scene.branch,
+                 under_resolved=int(under), eps_min=grid.eps_min, n_nodes=grid.n_nodes,
+                 max_phi=max_phi,
+                 stage1_iterations=stats.get('stage1', {}).get('inner', -1),
+                 stage2_iterations=stats.get('stage2', {}).get('iterations', -1),
+                 factorizations=factorizations, adapt=adapt_f, adapt_band=adapt_band,
+                 parent=start.path if start is not None else '',
+                 start_topology=start.attrs.get('topology', '') if start is not None else '',
+                 time_setup=setup, time_adapt=adapt_time,
+                 time_stage1=stats.get('stage1', {}).get('time', np.nan),
+                 time_stage2=stats.get('stage2', {}).get('time', np.nan),
+                 time_assembly=_event_seconds(mpi, ASSEMBLY_EVENTS, stages),
+                 time_linear=_event_seconds(mpi, LINEAR_EVENTS, stages),
+                 peak_rss_mb=mpi.allreduce(
+                     resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX),
+                 box=np.asarray(scene.box))
+    if converged and checks:  # an interrupted run checkpoints at once
+        attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
+    return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,
+                  unused_options=unused)
+
+
+def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
+    """The azimuthal stability of an axisymmetric `result` against
+    perturbations psi(r, z) cos(m theta), m = 0 ... `modes`
+    (`parallel.stability`). Collective on the grid's communicator (`grid`, else
+    the result's, else one rebuilt from its nodes).
+
+    Returns one `parallel.stability.Spectrum` per m, its `vectors` as nodal chi
+    (psi = r^m chi_h) on every rank, and records in `result.attrs` the index
+    per m without the rigid motions (`index_m`) and the lowest eigenvalue per
+    m (`lowest_m`), which `save` writes to the checkpoint. The eigensolver
+    reads its options under `prefix` + 'modes_' (`-PREFIXmodes_eps_tol`;
+    `options` as for `solve`, e.g. {'modes_eps_tol': 1e-12}).
+    """
+    grid = grid or result.grid or Grid.of(result)
+    PETSc = petsc.start()
+    stage = PETSc.Log.Stage('pfModes')
+    stage.push()
+    try:
+        with Problem(grid, result.scene, result.eps, prefix or next_prefix(),
+                     options) as problem:
+            analysis = problem.modes(result.phi, result.nu[0], nev)
+            spectra = []
+            for m in range(modes + 1):
+                s = analysis.spectrum(m)
+                spectra.append(s._replace(vectors=[problem.nodal(chi, 0.0)
+                                                   for chi in s.vectors]))
+    finally:
+        stage.pop()
+    result.attrs.update(
+        index_m=np.array([s.index - np.count_nonzero((s.rigid > RIGID) & (s.eigenvalues < 0))
+                          for s in spectra]),
+        lowest_m=np.array([min([v for v, r in zip(s.eigenvalues, s.rigid) if not r > RIGID],
+                               default=np.nan) for s in spectra]),
+        time_modes=sum(s.time for s in spectra))
+    return spectra
+
+
+def _event_seconds(mpi, names, stages):
+    """Seconds spent in the named log events during the stages, max over ranks."""
+    PETSc = petsc.start()
+    mine = sum(PETSc.Log.Event(name).getPerfInfo(s.id)['time'] for name in names for s in stages)
+    return mpi.allreduce(mine, op=MPI.MAX)

@@ -1,0 +1,137 @@
+"""A solved (or stopped) state: its nodes and phi, typed fields for what users
+read, the checkpoint attributes for the rest; reading and writing it."""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pfmembrane.io import checkpoint
+from pfmembrane.kernels.basis import locality
+from pfmembrane.scene import Scene
+
+# The multipliers' attribute names: L = E - nu . (c - c0), c = (A, V, M).
+MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
+
+
+@dataclass
+class Result:
+    """A solved (or stopped) state: nodes and nodal phi on every rank, and the
+    checkpoint attributes (`io.checkpoint`): energy, area, volume, moment, the
+    multipliers, eps, the scene, converged, times. `grid` is the grid it was
+    solved on (None for a result read from a file); `unused_options` the
+    options given to its solve that nothing used."""
+    nodes: np.ndarray
+    phi: np.ndarray
+    attrs: dict
+    grid: object = None
+    message: str = ''
+    status: int = 0
+    path: str = ''
+    datasets: dict = field(default_factory=dict)
+    unused_options: list = field(default_factory=list)
+
+    @property
+    def energy(self):
+        return float(self.attrs['energy'])
+
+    @property
+    def eps(self):
+        return float(self.attrs['eps'])
+
+    @property
+    def converged(self):
+        return bool(self.attrs['converged'])
+
+    @property
+    def nu(self):
+        """Multipliers (nu_A, nu_V[, nu_M]): L = E - nu . (c - c0)."""
+        n = 2 if self.attrs.get('symmetric', 0) else 3
+        return np.array([float(self.attrs.get(k, 0.0)) for k in MULTIPLIERS[:n]])
+
+    @property
+    def level_set_energy(self):
+        """The Canham-Helfrich energy of phi_h = 0, the sharp-limit estimate
+        (NaN where undefined or not computed: `solve(..., checks=True)`)."""
+        return float(self.attrs.get('level_set_energy', math.nan))
+
+    @property
+    def topology(self):
+        """What phi_h = 0 is ('1 sphere', '2 spheres', '1 torus', ...; '' unchecked)."""
+        return str(self.attrs.get('topology', ''))
+
+    @property
+    def components(self):
+        """The number of components of phi_h = 0 (0 unchecked)."""
+        return int(self.attrs.get('components', 0))
+
+    @property
+    def genus(self):
+        """The number of tori among them (0 unchecked)."""
+        return int(self.attrs.get('genus', 0))
+
+    @property
+    def index(self):
+        """The stability index per azimuthal mode m (`stability`; empty before)."""
+        return [int(i) for i in self.attrs.get('index_m', ())]
+
+    @property
+    def times(self):
+        """The time split in seconds (NaN where not measured): `wall`, `setup`,
+        `adapt`, `stage1`, `stage2`, `assembly`, `linear`, `modes`."""
+        keys = {'wall': 'wall_time', **{k: 'time_' + k for k in (
+            'setup', 'adapt', 'stage1', 'stage2', 'assembly', 'linear', 'modes')}}
+        return {k: float(self.attrs.get(key, math.nan)) for k, key in keys.items()}
+
+    @property
+    def scene(self):
+        return Scene.of(self.attrs)
+
+    @property
+    def basis(self):
+        """The basis parameters it was solved with (`Grid`'s keywords)."""
+        return checkpoint.basis(self.attrs)
+
+    def locality(self, plane=None):
+        """beta_a of its basis at its nodes (`plane`: the mirror plane of a half box):
+        its grid's, when it has its grid."""
+        if self.grid is not None and self.grid.discrete.plane == plane:
+            return self.grid.discrete.beta
+        b = self.basis
+        return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane,
+                        b['spacing_floor'])
+
+    def checkpoint(self):
+        return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
+
+    def unfolded(self):
+        """This state on the full box: a half-box result with its mirror image, on its
+        nodes and their images (a start for a full-box solve on those nodes, where the
+        up-down symmetry is free to break: an up-down symmetric grid keeps a pitchfork a
+        pitchfork); a full-box one unchanged."""
+        if not self.attrs.get('symmetric', 0):
+            return self
+        ck = self.checkpoint().unfolded()
+        return Result(ck.nodes, ck.phi, ck.attrs, message=self.message, status=self.status)
+
+    def save(self, path):
+        """Write the checkpoint and its `.xdmf` beside it, atomically.
+
+        Collective on the grid's communicator (serial for a result read back).
+        """
+        comm = self.grid.comm.tompi4py() if self.grid is not None else None
+        triangles = (self.grid.discrete.triangles if self.grid is not None
+                     else self.datasets.get('triangles'))
+        checkpoint.write(path, self.nodes, self.phi, self.attrs, comm=comm,
+                         datasets={k: v for k, v in self.datasets.items() if k != 'triangles'},
+                         triangles=triangles)
+        self.path = str(path)
+        return self
+
+
+def read(path, comm=None, expect_box=None):
+    """The result stored in a checkpoint; collective when `comm` (mpi4py or
+    PETSc) is given. `expect_box`: (Rb, Zb) it must have."""
+    if comm is not None and hasattr(comm, 'tompi4py'):
+        comm = comm.tompi4py()
+    ck = checkpoint.read(path, comm, expect_box=expect_box)
+    return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)

@@ -1,0 +1,107 @@
+"""The start of a solve: a family's initial shape (a spheroid, a torus, two
+spheres, or the sharp-interface shape) checked against its box, or an
+earlier result's phi_h on a new grid, its tanh profile rescaled to eps."""
+import math
+
+import numpy as np
+
+from pfmembrane.io.options import SHAPE_NAMES, UsageError, start_kind
+from pfmembrane.kernels import initial
+from pfmembrane.kernels.adapt import transfer
+
+# Resampling of a sharp start's curve, in eps: its distances err by less than
+# 1/64 eps on the membrane, 1% of the tanh profile's slope.
+CURVE_SPACING = 1.0 / 32
+
+
+def check_fits(p, eps=None, start=None, sharp=None):
+    """The start's kind and shape (`kernels.initial.extent`: a spheroid's
+    semi-axes, a torus's radii, spheres' radii and heights, or the sharp
+    generating curve (r, z) about its centroid), which with a 3 eps margin must
+    fit the box (`p` a `Params`, or a scene and its `eps`; `start` the
+    -pf_start choice, by default `p`'s or auto). A sharp start is checked
+    only with its `sharp` curve, which the layers above compute
+    (`sharp_shape`): without it the shape returned is None."""
+    start = start or getattr(p, 'start', 'auto')
+    kind = start_kind(p.branch, start)
+    if kind == 'sharp' and sharp is None:
+        return kind, None
+    scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "
+             f"-pf_branch {p.branch}")
+    try:
+        # Floating-point trouble means no shape, as an error rather than a warning on stderr.
+        with np.errstate(divide='raise', over='raise', invalid='raise', under='ignore'):
+            shape = sharp if kind == 'sharp' else initial.construction(kind, p.branch, p.area,
+                                                                      p.volume)
+            size, why = initial.extent(kind, shape), ''
+    except (ValueError, ArithmeticError) as e:
+        size, why = (math.nan, math.nan), f" ({e})" if str(e) else ''
+    if not all(0 < x < math.inf for x in size):
+        raise UsageError(f"no {SHAPE_NAMES[kind]} has the area and volume of {scene}: "
+                         f"the initial guess cannot be built{why}")
+    Rb, Zb = p.box
+    margin = 3.0 * (p.eps if eps is None else eps)
+    r, z = size
+    if r + margin > Rb or z + margin > 0.5 * Zb:
+        raise UsageError(
+            f"-pf_box {Rb:g},{Zb:g} cannot hold the {p.branch} vesicle of {scene} (its "
+            f"{SHAPE_NAMES[kind]} start reaches r = {r:.4g}, |z - Zb/2| = {z:.4g}) with a "
+            f"margin of 3 -pf_eps: need Rb >= "
+            f"{r + margin:.4g}, Zb >= {2 * (z + margin):.4g}")
+    return kind, shape
+
+
+def start_phi(scene, grid, eps, start, shape='auto'):
+    """Nodal phi of the start at every node (the scene's initial `shape`, the
+    -pf_start choice, or `start`'s phi_h on this grid, its tanh profile
+    rescaled to `eps`), the start's multipliers (None for a fresh start) and
+    whether it was solved."""
+    if start is None:
+        kind, geometry = check_fits(scene, eps, shape)
+        if kind != 'sharp':
+            return fresh_phi(grid.nodes, kind, geometry, scene.zc, eps), None, False
+        sharp = sharp_shape(scene)
+        kind, geometry = check_fits(scene, eps, shape, (sharp.r, sharp.z))
+        # The sharp shape's multipliers are the phase field's in the limit eps -> 0: a
+        # better start for stage 1 than a least-squares fit, which takes a stomatocyte's
+        # inner bud into its outer membrane (nu_A ~ 245 for 1.3 at v = 0.62, eps 0.02).
+        nu = np.array([sharp.tension, sharp.pressure, 0.0][:2 if grid.symmetric else 3])
+        return fresh_phi(grid.nodes, kind, geometry, scene.zc, eps), nu, True
+    if start.attrs.get('symmetric', 0) != grid.symmetric:
+        raise UsageError(
+            f"the start {start.path or ''} holds a "
+            f"{'half' if start.attrs.get('symmetric', 0) else 'full'}-box solution: "
+            f"{'add' if start.attrs.get('symmetric', 0) else 'remove'} -pf_symmetric "
+            "to continue it")
+    if grid.transferred is not None and grid.transferred[0] is start:
+        phi = grid.transferred[1]
+    elif len(start.nodes) == grid.n_nodes and np.array_equal(start.nodes, grid.nodes):
+        phi = start.phi
+    else:
+        phi = transfer(start.nodes, start.phi, start.locality(grid.plane),
+                                  start.basis['cutoff'], grid.nodes, grid.box, grid.plane)
+    return initial.rescaled_phi(phi, start.eps, eps), start.nu, start.converged
+
+
+def sharp_shape(scene):
+    """The scene's sharp-interface shape, its curve about its centroid
+    (computed once per process: `analysis.limit.reference`)."""
+    from pfmembrane.analysis.limit import reference
+    try:
+        return reference(scene.branch, scene.reduced_volume, scene.c0, scene.radius, scene.k)
+    except RuntimeError as e:
+        raise UsageError(f"-pf_start sharp: no sharp-interface {scene.branch} "
+                                    f"shape for v = {scene.reduced_volume:g}, C0 = "
+                                    f"{scene.c0:g} ({e})") from None
+
+
+def fresh_phi(points, kind, geometry, zc, eps):
+    """phi at `points` of a fresh start of `kind` (`check_fits`)."""
+    if kind == 'spheroid':
+        return initial.spheroid_phi(points, *geometry, zc, eps)
+    if kind == 'torus':
+        return initial.profile(initial.torus_distance(points, *geometry, zc), eps)
+    if kind == 'spheres':
+        return initial.profile(initial.spheres_distance(points, *geometry, zc), eps)
+    r, z = geometry  # the sharp curve about its centroid: placed at zc, where M = 0 holds it
+    return initial.profile(initial.curve_distance(points, r, z + zc, CURVE_SPACING * eps), eps)
