@@ -6,20 +6,26 @@ Helfrich model on local max-ent approximants, solved with PETSc.
     grid = pf.Grid.uniform(scene, nodes=6124)
     result = pf.solve(scene, grid, eps=0.04)
 
-The names below come from `pfmembrane.api` (which says where each lives),
-imported on first use so that `python -m pfmembrane` starts PETSc before any
-numerical code loads. `petsc()` returns petsc4py's PETSc, started with the
-script's arguments.
+The names below are gathered in `pfmembrane.api` (which says what each is)
+and imported on first use from their own modules, so that `python -m
+pfmembrane` starts PETSc before any numerical code loads and that reading a
+result (`read`, `Result`) or describing a scene (`Scene`) needs no PETSc.
+`petsc()` returns petsc4py's PETSc, started with the script's arguments.
 """
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
-           'continuation', 'stability', 'petsc']
+import importlib
+
+_HOME = {'Scene': 'scene', 'Result': 'result', 'read': 'result', 'Grid': 'grid',
+         'adapt': 'grid', 'solve': 'equilibrium', 'stability': 'equilibrium',
+         'continuation': 'branching', 'tangent': 'branching', 'predict': 'branching',
+         'along': 'branching', 'petsc': 'api'}
+__all__ = list(_HOME)
 
 
 def __getattr__(name):
-    if name in __all__ or name == 'api':
-        import importlib
-        api = importlib.import_module('pfmembrane.api')
-        return api if name == 'api' else getattr(api, name)
+    if name in _HOME:
+        return getattr(importlib.import_module('pfmembrane.' + _HOME[name]), name)
+    if name == 'api':
+        return importlib.import_module('pfmembrane.api')
     raise AttributeError(f"module 'pfmembrane' has no attribute {name!r}")
 
 

@@ -97,7 +97,9 @@ def precheck(opts, comm):
     """Refuse bad options and an unwritable output path before importing the
     numerical code, which alone takes about a second per rank. Collective."""
     if not opts.hasName('help'):
+        from pfmembrane.starts import check_run
         p = options.read(opts)
+        check_run(p)
         options.check_output(p.output or options.default_output(p), comm.tompi4py())
 
 

@@ -22,5 +22,5 @@ from pfmembrane.parallel.petsc import start as petsc
 from pfmembrane.result import Result, read
 from pfmembrane.scene import Scene
 
-__all__ = ['Scene', 'Grid', 'Result', 'solve', 'adapt', 'read', 'predict', 'tangent', 'along',
-           'continuation', 'stability', 'petsc']
+__all__ = ['Scene', 'Result', 'read', 'Grid', 'adapt', 'solve', 'stability', 'continuation',
+           'tangent', 'predict', 'along', 'petsc']

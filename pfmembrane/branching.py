@@ -72,14 +72,11 @@ class Branch:
         self.problem.nu = result.nu
         self.checked = {}  # what `phase_field_checks` keeps between this branch's points
 
-    def close(self):
-        self.problem.close()
-
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.close()
+        return self.problem.__exit__(*exc)
 
 
 def tangent(result, parameter='reduced_volume', options=None, prefix=None):
@@ -118,59 +115,61 @@ def continuation(result, parameter, ds, steps, ds_max=None, options=None, prefix
     eigenvector of that Hessian whose eigenvalue is nearest zero, `critical_mode`, stored as `result`'s attr `critical_eigenvalue`) with no
     parameter change, and ds > 0 and ds < 0 go to its two sides.
     """
-    branch = Branch(result, parameter, options, prefix)
+    with Branch(result, parameter, options, prefix) as branch:
+        yield from _follow(branch, result, parameter, ds, steps, ds_max, checks, switch)
+
+
+def _follow(branch, result, parameter, ds, steps, ds_max, checks, switch):
+    """The points of `continuation` on `branch`."""
     problem, x = branch.problem, branch.x
     p = getattr(branch.scene, parameter)
     ds_max = ds_max or 4 * abs(ds)
-    try:
-        sign = 1.0 if ds > 0 else -1.0
-        if switch:
-            mx, mnu, value, negative = critical_mode(problem, x)
-            mx.scale(sign)
-            t = (mx, sign * mnu, 0.0)
-            result.attrs['critical_eigenvalue'] = value
-        else:
-            (bx, bnu), negative = branch_tangent(problem, x, parameter, p)
-            t = _unit(bx, bnu, sign)
-        start = None if negative is None else negative - problem.ncon
-        result.attrs['index_0'] = -1 if start is None else start
-        step, s, previous = abs(ds), 0.0, (t[2], start)
-        behind = None  # the point before this one and the step between them
-        for _ in range(steps):
-            x_old, nu_old = x.copy(), problem.nu.copy()
-            try:
-                p_new, its, factored, negative, (bx, bnu) = arclength(
-                    problem, x, parameter, p, t, step, CORRECTOR_MAX_IT,
-                    _bend(behind, x, nu_old, p, t, step))
-                if _distance(x, x_old, p_new - p) > JUMP * step:
-                    raise SolveError("the corrector left the step's neighbourhood")
-            except SolveError:
-                x_old.copy(x)
-                problem.nu = nu_old
-                problem.at(parameter, p)
-                step /= 2
-                if step < abs(ds) / 64:
-                    warnings.warn(f"continuation in {parameter} stopped at {p:g}: the "
-                                  f"corrector failed down to a step of {step:.3g}",
-                                  stacklevel=2)
-                    return
-                continue
-            s += step
-            behind = (x_old, nu_old, p, step)
-            p = p_new
-            # the new tangent continues the old one: (b, 1) oriented by t
-            t_new = _unit(bx, bnu, 1.0)
-            if t[0].dot(t_new[0]) / x.getSize() + t[2] * t_new[2] < 0:
-                t_new = _unit(bx, bnu, -1.0)
-            index = None if negative is None else negative - problem.ncon
-            fold = int(previous[0] != 0 and np.sign(t_new[2]) != np.sign(previous[0]))
-            changed = int(previous[1] is not None and index is not None
-                          and index != previous[1] and not fold)
-            t, previous = t_new, (t_new[2], index)
-            yield _point(branch, p, s, index, t_new[2], fold, changed, its, checks)
-            step = min(1.5 * step, ds_max) if factored <= GROW_IT else step
-    finally:
-        branch.close()
+    sign = 1.0 if ds > 0 else -1.0
+    if switch:
+        mx, mnu, value, negative = critical_mode(problem, x)
+        mx.scale(sign)
+        t = (mx, sign * mnu, 0.0)
+        result.attrs['critical_eigenvalue'] = value
+    else:
+        (bx, bnu), negative = branch_tangent(problem, x, parameter, p)
+        t = _unit(bx, bnu, sign)
+    start = None if negative is None else negative - problem.ncon
+    result.attrs['index_0'] = -1 if start is None else start
+    step, s, previous = abs(ds), 0.0, (t[2], start)
+    behind = None  # the point before this one and the step between them
+    for _ in range(steps):
+        x_old, nu_old = x.copy(), problem.nu.copy()
+        try:
+            p_new, its, factored, negative, (bx, bnu) = arclength(
+                problem, x, parameter, p, t, step, CORRECTOR_MAX_IT,
+                _bend(behind, x, nu_old, p, t, step))
+            if _distance(x, x_old, p_new - p) > JUMP * step:
+                raise SolveError("the corrector left the step's neighbourhood")
+        except SolveError:
+            x_old.copy(x)
+            problem.nu = nu_old
+            problem.at(parameter, p)
+            step /= 2
+            if step < abs(ds) / 64:
+                warnings.warn(f"continuation in {parameter} stopped at {p:g}: the "
+                              f"corrector failed down to a step of {step:.3g}",
+                              stacklevel=2)
+                return
+            continue
+        s += step
+        behind = (x_old, nu_old, p, step)
+        p = p_new
+        # the new tangent continues the old one: (b, 1) oriented by t
+        t_new = _unit(bx, bnu, 1.0)
+        if t[0].dot(t_new[0]) / x.getSize() + t[2] * t_new[2] < 0:
+            t_new = _unit(bx, bnu, -1.0)
+        index = None if negative is None else negative - problem.ncon
+        fold = int(previous[0] != 0 and np.sign(t_new[2]) != np.sign(previous[0]))
+        changed = int(previous[1] is not None and index is not None
+                      and index != previous[1] and not fold)
+        t, previous = t_new, (t_new[2], index)
+        yield _point(branch, p, s, index, t_new[2], fold, changed, its, checks)
+        step = min(1.5 * step, ds_max) if factored <= GROW_IT else step
 
 
 def _bend(behind, x, nu, p, t, ds):

@@ -119,7 +119,8 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
     per m without the rigid motions (`index_m`) and the lowest eigenvalue per
     m (`lowest_m`), which `save` writes to the checkpoint. The eigensolver
     reads its options under `prefix` + 'modes_' (`-PREFIXmodes_eps_tol`;
-    `options` as for `solve`, e.g. {'modes_eps_tol': 1e-12}).
+    `options` as for `solve`, e.g. {'modes_eps_tol': 1e-12}); those nothing
+    used are warned of and added to the result's `unused_options`.
     """
     grid = grid or result.grid or Grid.of(result)
     PETSc = petsc.start()
@@ -134,8 +135,13 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
                 s = analysis.spectrum(m)
                 spectra.append(s._replace(vectors=[problem.nodal(chi, 0.0)
                                                    for chi in s.vectors]))
+            unused = [k[len(problem.prefix):] for k in problem.options.unused(problem.mpi)]
     finally:
         stage.pop()
+    if unused:
+        warnings.warn(f"stability options never used: {', '.join('-' + k for k in unused)}",
+                      stacklevel=2)
+        result.unused_options = [*result.unused_options, *unused]
     result.attrs.update(
         index_m=np.array([s.index - np.count_nonzero((s.rigid > RIGID) & (s.eigenvalues < 0))
                           for s in spectra]),

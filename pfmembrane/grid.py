@@ -73,6 +73,18 @@ class Grid:
     def n_nodes(self):
         return len(self.discrete.nodes)
 
+    def adapt_summary(self):
+        """One line on the CVT relocation that made this grid ('' for a grid
+        not made by `adapt`)."""
+        info = self.adapt_info
+        if not info:
+            return ''
+        band = f" band={info['band']:g}" if info['band'] else ''
+        return (f"adapt: CVT f={info['f']:g}{band} of {info['of']}: {info['iterations']} Lloyd "
+                f"steps (movement {info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> "
+                f"{info['h_min'][1]:.4g}, raster {info['raster'][1]}x{info['raster'][0]}, "
+                f"{info['time']:.2f} s")
+
     def fits(self, scene):
         """Whether `scene` can be solved on this grid: same box and symmetry."""
         return (scene.box != 'auto' and np.allclose(scene.box, self.box, rtol=0, atol=1e-12)

@@ -14,6 +14,14 @@ from pfmembrane.kernels.adapt import transfer
 CURVE_SPACING = 1.0 / 32
 
 
+def check_run(p):
+    """Refuse the options `p` (`io.options.Params`) of a fresh run whose start
+    does not fit its box; a restart's box is its checkpoint's, an auto box is
+    sized to fit (`Scene.sized`)."""
+    if not p.restart and p.box != 'auto':
+        check_fits(p)
+
+
 def check_fits(p, eps=None, start=None, sharp=None):
     """The start's kind and shape (`kernels.initial.extent`: a spheroid's
     semi-axes, a torus's radii, spheres' radii and heights, or the sharp

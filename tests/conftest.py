@@ -18,6 +18,10 @@ test module cannot import this one by name.
     pfm         pfm(*args, n=2): the application on n ranks, as the drivers launch it
     mpirun      mpirun(args): a 2-rank `Run` of the application to act on as it runs
     on_groups   on_groups(module, *args): a driver on one rank, then on two groups of one
+    md_tables   md_tables(text): the markdown tables of a generated page, cells by column
+
+Under pytest-xdist each worker gets an Open MPI session directory of its own (see
+_own_ompi_session_dir).
 """
 import atexit
 import contextlib
@@ -229,6 +233,56 @@ def pytest_terminal_summary(terminalreporter):
         terminalreporter.section(f'not marked slow, over {UNMARKED:g} s')
         for t, name in over:
             terminalreporter.write_line(f'{t:6.1f} s  {name}')
+
+
+class Table:
+    """A markdown table: `section` (the text of the last heading above it, '' if none),
+    `header` (the column names; a name that repeats gets ' 2', ' 3' ... on its later
+    columns) and `rows` (dicts column -> cell text, stripped)."""
+
+    def __init__(self, section, lines):
+        header, rule, *body = [[c.strip() for c in line.strip()[1:-1].split('|')]
+                               for line in lines]
+        assert set(''.join(rule)) <= set('-:') and len(rule) == len(header), lines[1]
+        seen = {}
+        for k, name in enumerate(header):
+            seen[name] = seen.get(name, 0) + 1
+            header[k] = name if seen[name] == 1 else f'{name} {seen[name]}'
+        for line, cells in zip(lines[2:], body):
+            assert len(cells) == len(header), line
+        self.section, self.header = section, header
+        self.rows = [dict(zip(header, cells)) for cells in body]
+
+    def column(self, name, kind=float):
+        return [kind(row[name]) for row in self.rows]
+
+    def row(self, column, value):
+        """The one row whose `column` reads `value`."""
+        found = [row for row in self.rows if row[column] == value]
+        assert len(found) == 1, (column, value, self.rows)
+        return found[0]
+
+
+def md_tables(text):
+    """The markdown tables of `text`, in order, as `Table`s."""
+    tables, block, section = [], [], ''
+    for line in text.splitlines() + ['']:
+        if line.startswith('|'):
+            block.append(line)
+            continue
+        if block:
+            tables.append(Table(section, block))
+            block = []
+        if line.startswith('#'):
+            section = line.lstrip('#').strip()
+    return tables
+
+
+@pytest.fixture(scope='session', name='md_tables')
+def _md_tables():
+    """md_tables(text): the markdown tables of `text` (see `Table`), to check a generated
+    page by the values in its cells rather than by its formatting."""
+    return md_tables
 
 
 @pytest.fixture(scope='session')

@@ -57,7 +57,7 @@ def test_crossings_skip_states_that_are_not_one_sphere():
     assert math.isnan(crossings.phase_field_crossing('prolate-oblate', series, 'energy'))
 
 
-def test_notes_page(tmp_path):
+def test_notes_page(tmp_path, md_tables):
     series = {b: dict(branch=b, box=(0.5, 1.0), symmetric=b != 'stomatocyte', nodes=100,
                       eps_min=0.01, rows=[_state(v, e(v)) for v in (0.58, 0.6, 0.62, 0.64, 0.66)])
               for b, e in (('prolate', lambda v: 11 - 20 * (v - 0.651)),
@@ -70,8 +70,27 @@ def test_notes_page(tmp_path):
     crossings.write(sharp_rows, series, args, 12.0, str(tmp_path))
     text = (tmp_path / 'notes.md').read_text()
     assert '--np 2 --eps 0.02 --nodes 40000' in text and 'wall time 12 s' in text
-    assert '| 0.56 | not converged |' in text
-    assert '| prolate-oblate | 0.652 | 0.651000 | 0.6510 | -0.0010 |' in text
+    tables = {t.section: t for t in md_tables(text)}
+    for branch, b in series.items():
+        table = tables[branch]
+        done = [r for r in b['rows'] if r['attrs']['converged']]
+        assert table.column('v')[:len(done)] == [r['v'] for r in done]
+        for row, r in zip(table.rows, done):
+            for column, key in (('E', 'energy'), ('E level set', 'level_set_energy'),
+                                ('E sharp', 'sharp_energy')):
+                assert float(row[column]) == round(r['attrs'][key], 5)
+    failed = tables['stomatocyte'].row('v', '0.56')
+    assert failed['E'] == 'not converged' and failed['topology'] == ''
+    # The synthetic energies: prolate and oblate cross at v = 0.651, E and level set alike;
+    # the oblate and stomatocyte differences keep their sign, so no root.
+    po = tables['The crossings'].row('crossing', 'prolate-oblate')
+    assert float(po['SBL']) == 0.652 and float(po['sharp (default n)']) == 0.651
+    for column in ('phase field, level-set E', 'phase field, E',
+                   'sharp E at the same v, spline'):
+        assert float(po[column]) == pytest.approx(0.651, abs=5e-5)
+    assert float(po['minus SBL']) == pytest.approx(0.651 - 0.652, abs=5e-5)
+    ob_st = tables['The crossings'].row('crossing', 'oblate-stomatocyte')
+    assert math.isnan(float(ob_st['phase field, level-set E']))
 
 
 @pytest.mark.slow

@@ -1,5 +1,7 @@
 """Tests of pfmembrane.analysis.limit: extrapolation, level set, distances, CLI."""
 
+import re
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -182,7 +184,7 @@ def test_compare_names_a_missing_attribute(sphere):
 
 
 @pytest.mark.slow
-def test_cli_writes_report_and_figure(tmp_path):
+def test_cli_writes_report_and_figure(tmp_path, md_tables):
     eps = [0.06, 0.05, 0.04]
     paths = []
     for e in eps:
@@ -194,8 +196,16 @@ def test_cli_writes_report_and_figure(tmp_path):
     assert limit.main(paths + ["--out", str(out), "--samples", "100"]) == 0
 
     text = (tmp_path / "report" / "sphere.md").read_text()
-    assert text.count("| s0.0") == 3
-    assert f"E0 = {E0:.5f}" in text
+    table, = md_tables(text)
+    assert table.column("checkpoint", str) == [f"s{e}.h5" for e in eps]
+    assert table.column("eps") == eps and table.column("converged", int) == [1] * 3
+    assert table.column("E") == [round(E0 + A1 * e + A2 * e * e, 6) for e in eps]
+    # The fit of an exact quadratic in eps: E0 itself; its error estimate is the miss of the
+    # line through the two smallest eps, A2 eps_1 eps_2 (as in
+    # test_extrapolation_of_a_quadratic_is_exact).
+    e0, error = map(float, re.search(r"\bE: E0 = (\S+) \+- (\S+?)\*", text).groups())
+    assert e0 == pytest.approx(E0, abs=1e-6)
+    assert error == pytest.approx(A2 * 0.05 * 0.04, abs=1e-6)
     assert (tmp_path / "report" / "sphere.png").stat().st_size > 10_000
 
 

@@ -21,6 +21,7 @@ from pfmembrane.io import options  # noqa: E402
 from pfmembrane.kernels.initial import spheroid_axes  # noqa: E402
 from pfmembrane.io.options import Params, UsageError  # noqa: E402
 from pfmembrane.parallel.petsc import options_left  # noqa: E402
+from pfmembrane.starts import check_run  # noqa: E402
 
 # The small scene of the command-line tests, as option strings.
 SCENE = {'eps': '0.06', 'box': '0.8,1.0', 'nodes': '1000', 'radius': '0.4',
@@ -50,13 +51,16 @@ VALUES = {**{name: number_texts for name in FLOATS}, **{name: integer_texts for 
 
 def read(values, extra=()):
     """options.read on a fresh PETSc options database holding -pf_<name> <value>
-    and the `extra` (name, value) pairs."""
+    and the `extra` (name, value) pairs, and the command line's check that a fresh
+    start fits its box (`starts.check_run`)."""
     opts = PETSc.Options()
     opts.create()
     try:
         for name, value in [*(('pf_' + n, v) for n, v in values.items()), *extra]:
             opts.setValue(name, value)
-        return options.read(opts)
+        p = options.read(opts)
+        check_run(p)
+        return p
     finally:
         opts.destroy()
 

@@ -57,7 +57,7 @@ def test_no_ring_torus_above_its_largest_reduced_volume():
     with pytest.raises(ValueError, match='no ring torus'):
         initial.torus_radii(4 * np.pi * R ** 2, 0.9 * 4 / 3 * np.pi * R ** 3)
     with pytest.raises(UsageError, match=r'no ring torus has the area and volume.*-pf_branch torus'):
-        options.validate(scene(branch='torus', reduced_volume=0.9))
+        check_fits(scene(branch='torus', reduced_volume=0.9))
 
 
 def test_the_signed_distance_to_a_generating_curve_is_exact_for_a_sphere():
@@ -119,7 +119,7 @@ def test_the_pear_start_is_two_unequal_spheres():
     kind, (radii, heights) = check_fits(p)
     assert kind == 'spheres' and radii[1] == pytest.approx(initial.PEAR_RATIO * radii[0])
     with pytest.raises(UsageError, match='pair of spheres'):
-        options.validate(replace(p, reduced_volume=0.7))
+        check_fits(replace(p, reduced_volume=0.7))
 
 
 @pytest.mark.parametrize('branch', ['stomatocyte', 'pear'])
@@ -132,11 +132,11 @@ def test_a_box_too_small_for_the_start_names_the_box_it_needs():
     p = scene(branch='torus', reduced_volume=CLIFFORD, box=(0.5, 1.0), eps=0.04)
     with pytest.raises(UsageError, match=r'-pf_box 0.5,1 cannot hold the torus vesicle .*'
                                          r'ring torus start reaches r = 0.4581.*need Rb >= 0.5781'):
-        options.validate(p)
-    options.validate(replace(p, box=(0.58, 1.0)))
+        check_fits(p)
+    check_fits(replace(p, box=(0.58, 1.0)))
     p = scene(branch='budded', reduced_volume=0.75, box=(0.7, 1.0), eps=0.04)
     with pytest.raises(UsageError, match=r'cannot hold the budded vesicle.*Zb >= '):
-        options.validate(p)
+        check_fits(p)
 
 
 def test_the_start_must_be_one_of_the_family():
@@ -165,7 +165,7 @@ def test_the_torus_start_stays_a_torus_and_reports_its_own_energy():
     comm = pf.api.petsc(sys.argv[:1]).COMM_SELF
     scene = pf.Scene(reduced_volume=3 / (2 ** 1.25 * np.sqrt(np.pi)), radius=0.4,
                      box=(0.8, 1.0), branch='torus')
-    res = pf.solve(scene, pf.Grid.uniform(scene, nodes=1500, comm=comm), eps=0.04)
+    res = pf.solve(scene, pf.Grid.uniform(scene, nodes=1500, comm=comm), eps=0.04, checks=True)
     assert res.converged
     assert res.attrs['topology'] == '1 torus' and res.attrs['genus'] == 1
     assert 0.0 < res.attrs['level_set_energy'] / np.pi ** 2 - 1 < 0.06

@@ -1,6 +1,8 @@
 """Table 4 regenerated from sequence directories: the cell of an eps is the
 least energy of its converged steps, a half box is compared with the paper's
 full-box row, and differences beyond 0.1 points are counted as misses."""
+import re
+
 import h5py
 
 from pfmembrane.studies import table4
@@ -27,7 +29,17 @@ def sequence_dir(tmp, name, n_nodes, symmetric, runs):
     return str(directory)
 
 
-def test_the_least_energy_of_an_eps_fills_its_cell(tmp_path):
+def parse_cell(text):
+    """(error %, grid, the paper's error %, difference) of a cell such as
+    '1.00 O31 (1.12, -0.12)'; None for what it does not show."""
+    match = re.fullmatch(r'(?:(\S+) (\S+) )?\((\S+?)(?:, (\S+))?\)', text)
+    assert match, text
+    error, grid, paper, diff = match.groups()
+    number = lambda x: None if x is None else float(x)  # noqa: E731
+    return number(error), grid, number(paper), number(diff)
+
+
+def test_the_least_energy_of_an_eps_fills_its_cell(tmp_path, md_tables):
     full = sequence_dir(tmp_path, 'full', 24542, False, [
         ('O31', 0.015, 1.00, True),
         ('O32', 0.015, 1.01, True),   # a later grid, but a higher energy
@@ -37,14 +49,14 @@ def test_the_least_energy_of_an_eps_fills_its_cell(tmp_path):
 
     rows, within, compared = table4.table([full, half])
 
-    cells = rows[2].split(' | ')
-    assert cells[0] == '| 24597' and cells[1] == 'full'
-    column = {e: 2 + i for i, e in enumerate(table4.COLUMNS)}
-    assert cells[column[0.015]] == f'1.00 O31 ({SHARP_ERROR[24597][0.015]:.2f}, -0.12)'
-    assert cells[column[0.01]] == f'({SHARP_ERROR[24597][0.01]:.2f})'
-    assert cells[column[0.005]] == '0.50 O32 (0.43, +0.07)'
+    table, = md_tables('\n'.join(rows))
+    full_row, half_row = table.rows[:2]
+    assert int(full_row['nodes']) == 24597 and full_row['box'] == 'full'
+    paper = SHARP_ERROR[24597]
+    assert parse_cell(full_row['eps 0.015']) == (1.00, 'O31', round(paper[0.015], 2), -0.12)
+    assert parse_cell(full_row['eps 0.01']) == (None, None, round(paper[0.01], 2), None)
+    assert parse_cell(full_row['eps 0.005']) == (0.50, 'O32', 0.43, 0.07)
     # a 6,176-node half box stands for the 12,271-node full box
-    half_cells = rows[3].split(' | ')
-    assert half_cells[0] == '| 12271' and half_cells[1] == 'half'
-    assert half_cells[column[0.007]] == '0.60 O22 (0.57, +0.03)'
+    assert int(half_row['nodes']) == 12271 and half_row['box'] == 'half'
+    assert parse_cell(half_row['eps 0.007']) == (0.60, 'O22', 0.57, 0.03)
     assert (within, compared) == (2, 3)

@@ -87,13 +87,8 @@ def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, star
              f"{' half box (mirror z=' + format(scene.zc, 'g') + ')' if p.symmetric else ''}")
     grid = grid_of(p, scene, start, comm, cache)
     fresh = grid.setup_pending
-    info = grid.adapt_info
-    if fresh and info:
-        band = f" band={info['band']:g}" if info['band'] else ''
-        print_fn(f"adapt: CVT f={info['f']:g}{band}"
-                 f" of {info['of']}: {info['iterations']} Lloyd steps (movement "
-                 f"{info['movement']:.1e}), h_min {info['h_min'][0]:.4g} -> {info['h_min'][1]:.4g}, "
-                 f"raster {info['raster'][1]}x{info['raster'][0]}, {info['time']:.2f} s")
+    if fresh and grid.adapt_info:
+        print_fn(grid.adapt_summary())
     t_setup = time.perf_counter() - t_start
     d = grid.discrete
     print_fn(f"grid: {grid.n_nodes} nodes ({d.layout.nglobal} free), {d.nquad} quadrature "

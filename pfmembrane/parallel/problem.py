@@ -13,7 +13,7 @@ import itertools
 
 import numpy as np
 
-from pfmembrane.io.options import read_settings, targets
+from pfmembrane.io.options import UsageError, read_settings, targets
 from pfmembrane.parallel.assembly import Assembly
 from pfmembrane.parallel.faults import Interrupted
 from pfmembrane.parallel.petsc import Options, start
@@ -200,22 +200,25 @@ class Problem:
         return analysis
 
     # -- lifetime ----------------------------------------------------------------
-    def close(self):
-        """Destroy the PETSc objects and restore the options database."""
+    def close(self, collective=True):
+        """Restore the options database and, `collective` (every rank here),
+        destroy the PETSc objects. An error that may be one rank's alone ends
+        in an abort of every rank (`__main__`), which a collective destroy on
+        the failing rank would never reach: `__exit__` skips it then."""
         try:
-            for analysis in self._analyses:
-                analysis.destroy()
-            self._analyses.clear()
-            self.solver.destroy()
+            if collective:
+                for analysis in self._analyses:
+                    analysis.destroy()
+                self._analyses.clear()
+                self.solver.destroy()
         finally:
             self.options.close()
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
-
+    def __exit__(self, kind, value, traceback):
+        self.close(collective=kind is None or issubclass(kind, (UsageError, GeneratorExit)))
 
 _count = itertools.count(1)
 

@@ -188,6 +188,7 @@ def trace(family, c0, args, comm, say):
             along = [pf.Result(*shape) for shape in coarse['shapes']]
             grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:], band=args.band,
                             **basis)
+            say(grid.adapt_summary())
         else:
             grid = pf.Grid.uniform(scene, nodes=paper_spacing(args.nodes, box), comm=comm,
                                    **basis)

@@ -3,11 +3,15 @@ alone: the paper's discocyte and dumbbell, the half-box adaptive discocyte seque
 O11, O12, O13 of Table B.6), the oblate branch from v 0.95 down past 0.75 by arclength, the
 m = 0..4 spectra of the eps 0.06 discocyte and the Clifford torus at eps 0.04.
 
-    mpiexec -n 2 python runs/engine/equivalence.py > equivalence_COMMIT.txt
+    mpiexec -n 2 python runs/engine/equivalence.py > OUT.txt
 
-Run at two commits, the outputs compared by `compare.py` (1e-12 relative; 1e-9 for the
-adaptive sequence, whose CVT amplifies rounding).
+Run at two commits (`git worktree add DIR COMMIT`, then PYTHONPATH=DIR), the outputs
+compared by `compare.py`. The first lines (`#`) name the code, the machine and its load.
 """
+import datetime
+import os
+import platform
+import subprocess
 import sys
 
 import pfmembrane as pf
@@ -47,7 +51,26 @@ def half_sequence():
                                              options={'pf_stage1': 'none'}, checks=False)
 
 
+def header():
+    """The code version, the date, the machine and its load, as `#` lines."""
+    here = os.path.dirname(os.path.abspath(pf.__file__))
+    git = ['git', '-C', here]
+    commit = subprocess.run([*git, 'rev-parse', '--short', 'HEAD'], capture_output=True,
+                            text=True).stdout.strip()
+    dirty = subprocess.run([*git, 'status', '--porcelain', '--untracked-files=no'],
+                           capture_output=True, text=True).stdout.strip()
+    cpu = next((line.split(':', 1)[1].strip() for line in open('/proc/cpuinfo')
+                if line.startswith('model name')), platform.processor())
+    ranks = pf.api.petsc().COMM_WORLD.getSize()
+    for line in (f"code {commit}{' (modified)' if dirty else ''} at {here}",
+                 f"date {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
+                 f"machine {os.cpu_count()} cores, {cpu}; load {os.getloadavg()[0]:.2f} at start",
+                 f"command mpiexec -n {ranks} python {' '.join(sys.argv)}"):
+        pf.api.petsc().Sys.Print('# ' + line)
+
+
 def main():
+    header()
     which = sys.argv[1:] or ['paper', 'sequence', 'branch', 'spectra', 'clifford']
     if 'paper' in which:
         for branch in ('oblate', 'prolate'):
