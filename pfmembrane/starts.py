@@ -93,8 +93,8 @@ def start_phi(scene, grid, eps, start, shape='auto'):
 
 def sharp_shape(scene):
     """The scene's sharp-interface shape, its curve about its centroid
-    (computed once per process: `analysis.limit.reference`)."""
-    from pfmembrane.analysis.limit import reference
+    (computed once per process: `analysis.levelset.reference`)."""
+    from pfmembrane.analysis.levelset import reference
     try:
         return reference(scene.branch, scene.reduced_volume, scene.c0, scene.radius, scene.k)
     except RuntimeError as e:

@@ -126,7 +126,7 @@ def test_reading_and_plotting_need_no_petsc(solved, tmp_path):
     script = (
         "import sys; sys.modules['petsc4py'] = None\n"
         "import pfmembrane as pf\n"
-        "from pfmembrane.analysis import plot, limit\n"
+        "from pfmembrane.analysis import plot, levelset\n"
         f"r = pf.read({str(path)!r}); print(r.energy)\n"
         f"plot.main([{str(path)!r}, '--what', 'field,3d'])\n"
         "print('petsc4py.PETSc' in sys.modules, 'matplotlib' in sys.modules)\n")
@@ -170,7 +170,7 @@ def test_a_half_box_result_unfolds_into_a_full_box_start_on_a_symmetric_grid(com
 
 
 def test_a_floored_grid_solves_and_its_result_carries_the_floor(solved, comm, tmp_path):
-    from pfmembrane.analysis import limit
+    from pfmembrane.analysis import levelset
     from pfmembrane.kernels.basis import locality
     grid = pf.adapt(solved, 10.0, comm=comm, spacing_floor=0.5)
     unfloored = locality(grid.nodes, grid.params['gamma'], grid.params['spacing_smoothing'])
@@ -184,6 +184,6 @@ def test_a_floored_grid_solves_and_its_result_carries_the_floor(solved, comm, tm
     back = pf.read(tmp_path / 'floored.h5', comm=comm)
     # the level set, a transfer and a regrid see the solve's basis, not the unfloored one
     assert np.array_equal(back.locality(), beta)
-    assert np.array_equal(limit.PhaseField(back.checkpoint()).beta, beta)
+    assert np.array_equal(levelset.PhaseField(back.checkpoint()).beta, beta)
     assert pf.Grid.of(back, comm=comm).params == grid.params
     assert abs(res.energy / solved.energy - 1) < 0.01

@@ -130,10 +130,10 @@ def test_continuation_in_c0_goes_both_ways(solved):
 
 
 def _up_down_asymmetry(result):
-    from pfmembrane.analysis import limit
+    from pfmembrane.analysis import levelset
     from pfmembrane.io.checkpoint import Checkpoint
     ck = Checkpoint(nodes=result.nodes, phi=result.phi, attrs=dict(result.attrs)).unfolded()
-    return limit.up_down_asymmetry(limit.level_set(ck), result.scene.radius)
+    return levelset.up_down_asymmetry(levelset.level_set(ck), result.scene.radius)
 
 
 def test_the_prolate_bifurcates_to_pears_and_a_switch_follows_them():

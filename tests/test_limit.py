@@ -1,4 +1,4 @@
-"""Tests of pfmembrane.analysis.limit: extrapolation, level set, distances, CLI."""
+"""Tests of pfmembrane.analysis.levelset: extrapolation, level set, distances, CLI."""
 
 import re
 
@@ -11,7 +11,7 @@ from matplotlib.path import Path  # noqa: E402
 import pytest  # noqa: E402
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import limit  # noqa: E402
+from pfmembrane.analysis import levelset  # noqa: E402
 from pfmembrane.kernels import nodes as nodesets  # noqa: E402
 
 BOX = (0.6, 1.0)
@@ -51,7 +51,7 @@ def spacing(ckpt):
                                  [0.05, 0.04, 0.03, 0.02, 0.01, 0.01]])
 def test_extrapolation_of_a_quadratic_is_exact(eps):
     eps = np.array(eps)
-    fit = limit.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2)
+    fit = levelset.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2)
 
     assert fit.e0 == pytest.approx(E0, abs=1e-11)
     assert np.allclose(fit.coefficients, [E0, A1, A2], rtol=1e-8)
@@ -65,7 +65,7 @@ def test_extrapolation_of_a_quadratic_is_exact(eps):
 @pytest.mark.parametrize("a3", [-2000.0, 2000.0])
 def test_error_estimate_on_a_cubic_covers_the_error(a3):
     eps = np.array([0.01, 0.02, 0.03, 0.04])
-    fit = limit.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2 + a3 * eps ** 3)
+    fit = levelset.extrapolate(eps, E0 + A1 * eps + A2 * eps ** 2 + a3 * eps ** 3)
 
     error = abs(fit.e0 - E0)
     assert error > 1e-3                       # the cubic term is felt
@@ -76,16 +76,16 @@ def test_error_estimate_on_a_cubic_covers_the_error(a3):
 
 def test_extrapolation_needs_three_eps():
     with pytest.raises(ValueError, match="three distinct eps"):
-        limit.extrapolate([0.04, 0.04, 0.05], [9.6, 9.6, 9.7])
+        levelset.extrapolate([0.04, 0.04, 0.05], [9.6, 9.6, 9.7])
 
 
 def test_level_set_is_the_zero_of_the_interpolant(sphere):
-    curve = limit.level_set(sphere, samples=300)
+    curve = levelset.level_set(sphere, samples=300)
     h = spacing(sphere)
 
     assert len(curve) == 1 and len(curve[0]) == 300
     points = curve[0]
-    assert np.max(np.abs(limit.PhaseField(sphere)(points))) < 1e-12
+    assert np.max(np.abs(levelset.PhaseField(sphere)(points))) < 1e-12
     # From pole to pole along the axis.
     assert np.all(points[:, 0] >= 0.0)
     assert np.allclose(points[[0, -1], 0], 0.0, atol=1e-12)
@@ -105,17 +105,17 @@ def test_level_set_ignores_nodal_oscillations(tmp_path, sphere):
     phi[far] = 0.5
     checkpoint.write(tmp_path / "odd.h5", nodes, phi, dict(sphere.attrs))
     odd = checkpoint.read(tmp_path / "odd.h5")
-    field = limit.PhaseField(odd)
+    field = levelset.PhaseField(odd)
     assert field(nodes[far]) < -0.5
 
-    curve = limit.level_set(odd, samples=300)
+    curve = levelset.level_set(odd, samples=300)
     assert len(curve) == 1
     radial = np.hypot(curve[0][:, 0], curve[0][:, 1] - ZC) - R
     assert np.max(np.abs(radial)) < 0.05 * spacing(odd)
 
 
 def test_interpolant_gradient_matches_differences(sphere):
-    field = limit.PhaseField(sphere)
+    field = levelset.PhaseField(sphere)
     points = np.array([[0.0, ZC + R], [0.2, 0.6], [0.25, 0.3]])
     step = 1e-6
 
@@ -129,19 +129,19 @@ def test_interpolant_gradient_matches_differences(sphere):
 
 
 def test_distance_of_a_curve_to_itself_is_zero():
-    shape = limit.reference("oblate", 0.8, 0.0, 0.4, 1.0)
+    shape = levelset.reference("oblate", 0.8, 0.0, 0.4, 1.0)
     curve = [np.column_stack([shape.r, shape.z + 1.0])]
 
-    dist = limit.distance(curve, shape, centre=1.0)
+    dist = levelset.distance(curve, shape, centre=1.0)
     assert max(dist.values()) < 1e-12
 
 
 def test_distance_to_a_shifted_sphere_is_the_shift():
-    shape = limit.reference("prolate", 1.0, 0.0, R, 1.0)
+    shape = levelset.reference("prolate", 1.0, 0.0, R, 1.0)
     shift = 0.01
     curve = [np.column_stack([shape.r, shape.z + ZC + shift])]
 
-    dist = limit.distance(curve, shape, centre=ZC)
+    dist = levelset.distance(curve, shape, centre=ZC)
     assert dist["max"] == pytest.approx(shift, rel=1e-6)
     assert dist["hausdorff"] == pytest.approx(shift, rel=1e-6)
     # Arc-length mean of | |p - c| - R | over the shifted half circle.
@@ -152,9 +152,9 @@ def test_distance_to_a_shifted_sphere_is_the_shift():
 
 
 def test_reference_is_cached_and_read_only():
-    shape = limit.reference("oblate", 0.8, 0.0, 0.4, 1.0)
+    shape = levelset.reference("oblate", 0.8, 0.0, 0.4, 1.0)
 
-    assert limit.reference("oblate", np.float64(0.8), radius=0.4) is shape
+    assert levelset.reference("oblate", np.float64(0.8), radius=0.4) is shape
     assert shape.energy == pytest.approx(9.12657, rel=1e-6)
     with pytest.raises(ValueError):
         shape.r[0] = 1.0
@@ -166,7 +166,7 @@ def test_compare_sphere_scene(tmp_path):
     e_sharp = 2 * np.pi * k * (1 - c0 * R) ** 2
     ckpt = sphere_checkpoint(tmp_path / "s.h5", energy=1.1 * e_sharp, k=k, c0=c0)
 
-    result = limit.compare(ckpt)
+    result = levelset.compare(ckpt)
     h = spacing(ckpt)
     assert result["energy_sharp"] == pytest.approx(e_sharp, rel=1e-12)
     assert result["rel_error"] == pytest.approx(0.1, rel=1e-12)
@@ -180,7 +180,7 @@ def test_compare_names_a_missing_attribute(sphere):
     stripped = checkpoint.Checkpoint(sphere.nodes, sphere.phi, attrs)
 
     with pytest.raises(ValueError, match="cutoff"):
-        limit.compare(stripped)
+        levelset.compare(stripped)
 
 
 @pytest.mark.slow
@@ -193,7 +193,7 @@ def test_cli_writes_report_and_figure(tmp_path, md_tables):
         paths.append(str(path))
     out = tmp_path / "report" / "sphere"
 
-    assert limit.main(paths + ["--out", str(out), "--samples", "100"]) == 0
+    assert levelset.main(paths + ["--out", str(out), "--samples", "100"]) == 0
 
     text = (tmp_path / "report" / "sphere.md").read_text()
     table, = md_tables(text)
@@ -210,7 +210,7 @@ def test_cli_writes_report_and_figure(tmp_path, md_tables):
 
 
 def test_cli_reports_an_unreadable_checkpoint(tmp_path, capsys):
-    status = limit.main([str(tmp_path / "missing.h5"), "--out", str(tmp_path / "x")])
+    status = levelset.main([str(tmp_path / "missing.h5"), "--out", str(tmp_path / "x")])
 
     assert status == 1
     assert "no such file" in capsys.readouterr().err
@@ -219,20 +219,20 @@ def test_cli_reports_an_unreadable_checkpoint(tmp_path, capsys):
 def test_enclosed_volume_of_a_sphere_and_a_torus():
     t = np.linspace(0.0, np.pi, 401)
     sphere = [np.column_stack([0.4 * np.sin(t), 1.0 + 0.4 * np.cos(t)])]
-    assert abs(limit.enclosed_volume(sphere) / (4 / 3 * np.pi * 0.4 ** 3) - 1) < 1e-4
+    assert abs(levelset.enclosed_volume(sphere) / (4 / 3 * np.pi * 0.4 ** 3) - 1) < 1e-4
     s = np.linspace(0.0, 2 * np.pi, 801)[:-1]
     torus = [np.column_stack([0.5 + 0.1 * np.cos(s), 1.0 + 0.1 * np.sin(s)])]
-    assert abs(limit.enclosed_volume(torus) / (2 * np.pi ** 2 * 0.5 * 0.1 ** 2) - 1) < 1e-4
+    assert abs(levelset.enclosed_volume(torus) / (2 * np.pi ** 2 * 0.5 * 0.1 ** 2) - 1) < 1e-4
 
 
 def sharp_checkpoint(path, eps, n):
     """Checkpoint of phi = tanh(d / (sqrt2 eps)), d the signed distance to the
     sharp v = 0.8 discocyte of radius R centred at z = ZC."""
-    shape = limit.reference("oblate", 0.8, 0.0, R, 1.0)
+    shape = levelset.reference("oblate", 0.8, 0.0, R, 1.0)
     curve = np.column_stack([shape.r, shape.z + ZC])
     nodes = nodesets.uniform(BOX, n)
     inside = Path(curve).contains_points(nodes)
-    d = limit._polyline_distance(nodes, limit._dense(curve))
+    d = levelset._polyline_distance(nodes, levelset._dense(curve))
     phi = np.tanh(np.where(inside, d, -d) / (np.sqrt(2.0) * eps))
     phi[nodesets.dirichlet_mask(nodes, BOX)] = -1.0
     attrs = {"energy": 1.05 * shape.energy, "area": shape.area, "volume": shape.volume,
@@ -247,8 +247,8 @@ def sharp_checkpoint(path, eps, n):
 def test_level_set_energy_is_the_sharp_energy_to_second_order(tmp_path):
     ckpt, e_sharp = sharp_checkpoint(tmp_path / "disc.h5", eps=0.03, n=4000)
 
-    result = limit.compare(ckpt)
-    energy, energy_curve = limit.level_set_energy(ckpt, limit.level_set(ckpt))
+    result = levelset.compare(ckpt)
+    energy, energy_curve = levelset.level_set_energy(ckpt, levelset.level_set(ckpt))
 
     h = spacing(ckpt)
     assert 0.01 * h < result["dist_max"] < 0.2 * h
@@ -263,8 +263,8 @@ def test_level_set_energy_needs_one_curve_from_axis_to_axis(sphere):
     ring = [np.column_stack([0.2 + 0.05 * np.cos(t), 0.5 + 0.05 * np.sin(t)])
             for t in [np.linspace(0.0, 2.0 * np.pi, 50)]]
 
-    assert np.isnan(limit.level_set_energy(sphere, ring)).all()
-    assert np.isnan(limit.level_set_energy(sphere, 2 * limit.level_set(sphere))).all()
+    assert np.isnan(levelset.level_set_energy(sphere, ring)).all()
+    assert np.isnan(levelset.level_set_energy(sphere, 2 * levelset.level_set(sphere))).all()
 
 
 def test_membrane_is_empty_where_phi_h_has_no_zero_level_set(sphere):
@@ -272,9 +272,9 @@ def test_membrane_is_empty_where_phi_h_has_no_zero_level_set(sphere):
                                     attrs=sphere.attrs)
 
     with pytest.raises(ValueError):
-        limit.level_set(outside)
-    assert limit.membrane(outside) == []
-    assert len(limit.membrane(sphere)) == 1
+        levelset.level_set(outside)
+    assert levelset.membrane(outside) == []
+    assert len(levelset.membrane(sphere)) == 1
 
 
 def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, monkeypatch):
@@ -287,7 +287,7 @@ def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, mon
         raise RuntimeError("the projection onto phi_h = 0 did not converge")
 
     checked = phase_field_checks(MPI.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
-    monkeypatch.setattr(limit, "level_set", fails)
+    monkeypatch.setattr(levelset, "level_set", fails)
     failed = phase_field_checks(MPI.COMM_SELF, sphere.nodes, sphere.phi, dict(sphere.attrs))
 
     assert "sharp_energy" in checked and "sharp_energy" not in failed

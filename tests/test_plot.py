@@ -10,7 +10,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import limit, plot  # noqa: E402
+from pfmembrane.analysis import levelset, plot  # noqa: E402
 
 BOX = (1.0, 2.0)
 A, B, ZC = 0.5, 0.8, 1.0  # semi-axes along r and z, centre height
@@ -168,7 +168,7 @@ def test_field_mirrors_and_marks_nodes(pair):
     [dots] = [line for line in ax.get_lines() if line.get_label() != "_membrane"]
     np.testing.assert_array_equal(dots.get_xdata(), -thin.nodes[:, 0])
     # the colours are phi_h at the nodes, not the coefficients it does not interpolate
-    phi_h = limit.PhaseField(thin)(thin.nodes)
+    phi_h = levelset.PhaseField(thin)(thin.nodes)
     assert np.max(np.abs(phi_h - thin.phi)) > 1e-3
     for colours in ax.collections[:2]:
         np.testing.assert_array_equal(colours.get_array(), phi_h)

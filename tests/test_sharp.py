@@ -1,9 +1,9 @@
-"""Sharp-interface Canham-Helfrich reference shapes (pfmembrane.analysis.sharp)."""
+"""Sharp-interface Canham-Helfrich reference shapes (pfmembrane.sharp)."""
 import numpy as np
 import pytest
 
-from pfmembrane.analysis import sharp
-from pfmembrane.analysis.sharp import energy_reference, solve
+from pfmembrane.sharp import solver as sharp
+from pfmembrane.sharp import energy_reference, solve
 
 R0 = 0.4
 LITERATURE = {'oblate': 9.12657, 'prolate': 8.71756}   # v = 0.8, k = 1, C0 = 0

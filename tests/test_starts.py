@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from pfmembrane.analysis.contour import zero_contour
-from pfmembrane.analysis.limit import enclosed_volume, topology
+from pfmembrane.analysis.levelset import enclosed_volume, topology
 from pfmembrane.io import options
 from pfmembrane.io.options import Params, UsageError
 from pfmembrane.starts import check_fits
@@ -157,7 +157,7 @@ def test_help_lists_the_families_and_starts():
 @pytest.mark.slow
 def test_the_torus_start_stays_a_torus_and_reports_its_own_energy():
     """The Clifford torus scene (options/limits/clifford.opts) on a small grid: genus 1,
-    the level set's own energy (`limit.loop_energy`) in the result and above pi^2 by a
+    the level set's own energy (`levelset.loop_energy`) in the result and above pi^2 by a
     few percent at eps 0.04 (3.5% on 6,110 nodes: runs/limits/notes.md), its radii
     tending to 1 : sqrt 2 from above."""
     import sys

@@ -4,7 +4,7 @@ sphere."""
 import numpy as np
 import pytest
 
-from pfmembrane.analysis import limit
+from pfmembrane.analysis import levelset
 from pfmembrane.io import checkpoint
 from pfmembrane.kernels import nodes as nodesets
 
@@ -41,17 +41,17 @@ def ring(r, z, centre=0.5, tube=0.15):
 ])
 def test_the_level_set_of_a_field_has_its_topology(tmp_path, distance, label, genus):
     ckpt = field_checkpoint(tmp_path / 'f.h5', distance)
-    found = limit.topology(limit.level_set(ckpt), BOX)
+    found = levelset.topology(levelset.level_set(ckpt), BOX)
     assert found['label'] == label and found['tori'] == genus
     assert found['components'] == sum(int(part.split()[0]) for part in label.split(' + '))
 
 
 def test_a_piece_through_the_box_is_open():
     arc = np.column_stack([np.linspace(0.2, 1.5, 20), np.full(20, 1.0)])
-    assert limit.topology([arc], BOX)['label'] == '1 open piece'
+    assert levelset.topology([arc], BOX)['label'] == '1 open piece'
 
 
 def test_a_torus_is_not_compared_with_the_sharp_sphere(tmp_path):
     ckpt = field_checkpoint(tmp_path / 'f.h5', ring)
     with pytest.raises(ValueError, match='1 torus'):
-        limit.compare(ckpt)
+        levelset.compare(ckpt)

@@ -2,17 +2,17 @@
 the box, the level set's topology and own energy, the sharp-interface shape's."""
 import numpy as np
 
-from pfmembrane.analysis import limit
+from pfmembrane.analysis import levelset
 from pfmembrane.io import checkpoint
 
 
 def phase_field_checks(mpi, xy, phi, attrs, keep=None):
-    """phi_h one eps inside the box (`limit.boundary_phi`) and, where a level
-    set exists, its topology (`limit.topology`: ``topology``, ``components``,
+    """phi_h one eps inside the box (`levelset.boundary_phi`) and, where a level
+    set exists, its topology (`levelset.topology`: ``topology``, ``components``,
     ``genus``) and, for one sphere, the level set's own energy
-    (`limit.level_set_energy`) and, where the scene has a sharp-interface
+    (`levelset.level_set_energy`) and, where the scene has a sharp-interface
     shape, the energy error and level-set distance against it, or for one
-    torus its own energy and radii (`limit.loop_energy`), as attributes;
+    torus its own energy and radii (`levelset.loop_energy`), as attributes;
     where no comparison was possible, why in ``sharp_note``.
     Rank 0 computes. `keep`, a dict, carries the basis's locality from one
     call to the next on the same nodes (a continuation's points)."""
@@ -20,23 +20,23 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     if mpi.Get_rank() == 0:
         ckpt = checkpoint.Checkpoint(nodes=xy, phi=phi, attrs=attrs).unfolded()
         keep = {} if keep is None else keep
-        field_h = limit.PhaseField(ckpt, keep.get('beta'))
+        field_h = levelset.PhaseField(ckpt, keep.get('beta'))
         keep['beta'] = field_h.beta
-        result['boundary_phi'] = limit.boundary_phi(ckpt, field=field_h)
+        result['boundary_phi'] = levelset.boundary_phi(ckpt, field=field_h)
         try:
-            curve = limit.level_set(ckpt, field=field_h)
-            shape = limit.topology(curve, ckpt.box)
+            curve = levelset.level_set(ckpt, field=field_h)
+            shape = levelset.topology(curve, ckpt.box)
             result.update(topology=shape['label'], components=shape['components'],
                           genus=shape['tori'])
             if shape['label'] == '1 torus':   # no sharp torus to compare: its own energy
-                energy, radii = limit.loop_energy(ckpt, curve[0], field_h)
+                energy, radii = levelset.loop_energy(ckpt, curve[0], field_h)
                 result.update(level_set_energy=energy, torus_radii=np.asarray(radii))
             else:
                 try:
-                    c = limit.compare(ckpt, field=field_h, curve=curve)
+                    c = levelset.compare(ckpt, field=field_h, curve=curve)
                 except (ValueError, RuntimeError):
                     if shape['label'] == '1 sphere':  # no sharp shape of the scene (a pear)
-                        result['level_set_energy'] = limit.level_set_energy(ckpt, curve,
+                        result['level_set_energy'] = levelset.level_set_energy(ckpt, curve,
                                                                             field_h)[0]
                     raise
                 result.update(sharp_energy=c['energy_sharp'], sharp_rel_error=c['rel_error'],

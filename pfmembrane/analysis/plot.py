@@ -9,13 +9,13 @@ writes ``<stem>_<what>.png`` for every checkpoint and figure (the
 ``section`` figure gathers all checkpoints and is named after the first one)
 into OUTDIR, by default the checkpoint's directory, and prints each path.
 
-The figures show the max-ent approximant phi_h (`pfmembrane.analysis.limit.PhaseField`),
+The figures show the max-ent approximant phi_h (`pfmembrane.analysis.levelset.PhaseField`),
 not the nodal coefficients, which it does not interpolate: on a graded grid
 they oscillate far outside [-1, 1] (-3.6 ... 6.1 on the dumbbell's P14 at
 eps 0.01, where phi_h stays within 1e-3 of it) and cross zero away from the
 membrane. Colour maps interpolate phi_h at the nodes linearly on their
 Delaunay triangulation; sections evaluate phi_h on the line; the membrane is
-the level set phi_h = 0 (`pfmembrane.analysis.limit.level_set`).
+the level set phi_h = 0 (`pfmembrane.analysis.levelset.level_set`).
 """
 
 import argparse
@@ -28,7 +28,7 @@ import matplotlib.tri as mtri
 import numpy as np
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import limit
+from pfmembrane.analysis import levelset
 from pfmembrane.kernels.nodes import nodal_spacing
 
 __all__ = ["FIGURES", "triangulation",
@@ -73,14 +73,14 @@ def plot_field(ckpt, ax=None, nodes=True):
     """
     if ax is None:
         _, ax = plt.subplots()
-    field = limit.PhaseField(ckpt)
+    field = levelset.PhaseField(ckpt)
     phi = field(ckpt.nodes)
     half = triangulation(ckpt)
     mirror = mtri.Triangulation(-half.x, half.y, half.triangles)
     for tri in (half, mirror):
         image = ax.tripcolor(tri, phi, shading="gouraud", cmap="RdBu_r",
                              vmin=-1.0, vmax=1.0)
-    for line in limit.membrane(ckpt, field=field):
+    for line in levelset.membrane(ckpt, field=field):
         for sign in (1.0, -1.0):
             ax.plot(sign * line[:, 0], line[:, 1], color="k", linewidth=1.2,
                     label="_membrane")
@@ -124,7 +124,7 @@ def plot_section(ckpts, ax=None, z_mid=None, samples=400):
         rb, zb = ckpt.box
         z = 0.5 * zb if z_mid is None else z_mid
         r = np.linspace(0.0, rb, samples)
-        phi = limit.PhaseField(ckpt)(np.column_stack([r, np.full_like(r, z)]))
+        phi = levelset.PhaseField(ckpt)(np.column_stack([r, np.full_like(r, z)]))
         ax.plot(r, phi, label=f"eps = {ckpt.attrs['eps']:g}")
     ax.axhline(0.0, color="k", linewidth=0.5)
     ax.set_xlabel("r")
@@ -148,7 +148,7 @@ def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
     n_theta : int
         Number of meridians.
     curve : list of ndarray, optional
-        The membrane (`pfmembrane.analysis.limit.membrane`), if the caller has it.
+        The membrane (`pfmembrane.analysis.levelset.membrane`), if the caller has it.
 
     Returns
     -------
@@ -157,7 +157,7 @@ def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
     if ax is None:
         ax = plt.figure().add_subplot(projection="3d")
     theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
-    for line in limit.membrane(ckpt) if curve is None else curve:
+    for line in levelset.membrane(ckpt) if curve is None else curve:
         r, z = line[:, :1], line[:, 1:]
         ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
                         np.broadcast_to(z, (len(z), n_theta)),

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from pfmembrane.analysis import sharp
+from pfmembrane.sharp import solver as sharp
 from pfmembrane.io.options import STARTS
 from pfmembrane.kernels.initial import construction, extent
 
@@ -25,7 +25,7 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
     -------
     dict
         ``sharp``: (max r, max |z - z_centroid|) of the sharp-interface shape
-        (`pfmembrane.analysis.sharp.solve`), absent where that solver loses the branch;
+        (`pfmembrane.sharp.solve`), absent where that solver loses the branch;
         and for each constructed start of the branch (``spheroid``, ``torus``,
         ``spheres``: `kernels.initial.construction`), its half-sizes.
     """

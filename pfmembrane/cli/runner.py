@@ -139,7 +139,7 @@ def solver_options(table):
 def summary(res, output, print_fn):
     """The result line, and the box, topology, sharp-interface and stability
     lines where they apply; a topology other than the start's is flagged."""
-    from pfmembrane.analysis.limit import BOUNDARY_TOL
+    from pfmembrane.analysis.levelset import BOUNDARY_TOL
     a = res.attrs
     print_fn(
         f"result: E {a['energy']:.8f} nu_A {a['nu_area']:.6g} nu_V {a['nu_volume']:.6g} "

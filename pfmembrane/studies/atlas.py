@@ -317,10 +317,10 @@ def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_M
 
 def asymmetric(res):
     """Whether the level set phi_h = 0 of a full-box result is up-down asymmetric by more
-    than ASYMMETRY (`limit.up_down_asymmetry`): a pear, not a prolate. Collective."""
-    from pfmembrane.analysis import limit
-    curve = limit.level_set(res.checkpoint().unfolded())
-    return bool(curve) and abs(limit.up_down_asymmetry(curve, res.scene.radius)) > ASYMMETRY
+    than ASYMMETRY (`levelset.up_down_asymmetry`): a pear, not a prolate. Collective."""
+    from pfmembrane.analysis import levelset
+    curve = levelset.level_set(res.checkpoint().unfolded())
+    return bool(curve) and abs(levelset.up_down_asymmetry(curve, res.scene.radius)) > ASYMMETRY
 
 
 def paths(points):
@@ -569,7 +569,7 @@ def middles(branches, c0):
 def silhouettes(branches):
     """The level set of the least-energy state nearest the middle of each region of each
     c0, as (c0, v, label, [[r...], [z...]] per piece) about its centroid."""
-    from pfmembrane.analysis import limit
+    from pfmembrane.analysis import levelset
     from pfmembrane.io.checkpoint import Checkpoint
     out = []
     for c0 in sorted({b['c0'] for b in branches}):
@@ -583,7 +583,7 @@ def silhouettes(branches):
             nodes, phi, attrs = b['shapes'][i]
             ck = Checkpoint(nodes=nodes, phi=phi, attrs=attrs).unfolded()
             try:
-                curve = limit.level_set(ck)
+                curve = levelset.level_set(ck)
             except (ValueError, RuntimeError):
                 continue
             zc = 0.5 * float(attrs['box'][1])

@@ -290,9 +290,9 @@ def plot(directory, dpi=150):
     energies and the shapes.
 
     Not collective.  Phase-field energies are points (open where a run did not
-    converge); the sharp-interface energies (`pfmembrane.analysis.limit.reference`) are
+    converge); the sharp-interface energies (`pfmembrane.analysis.levelset.reference`) are
     lines on a v grid `SHARP_DV` apart up to the sphere, v = 1. Below, one strip
-    per branch shows the zero level set of phi_h (`pfmembrane.analysis.limit.level_set`)
+    per branch shows the zero level set of phi_h (`pfmembrane.analysis.levelset.level_set`)
     of each checkpoint at its v, mirrored about the axis, over the sharp curve,
     all at one scale.
 
@@ -306,7 +306,7 @@ def plot(directory, dpi=150):
     import matplotlib.pyplot as plt
     from matplotlib.transforms import blended_transform_factory
     # limit initializes PETSc, hence MPI: a process that starts mpiexec must not.
-    from pfmembrane.analysis.limit import membrane, reference
+    from pfmembrane.analysis.levelset import membrane, reference
 
     found = {branch: [c for _, c in pairs] for branch, pairs in checkpoints(directory).items()}
     if not found:

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from pfmembrane.analysis import sharp
+from pfmembrane.sharp import solver as sharp
 from pfmembrane.paper import paper_spacing
 from pfmembrane.studies import launch
 from pfmembrane.studies.sequence import iterations

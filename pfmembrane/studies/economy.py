@@ -21,7 +21,7 @@ import numpy as np
 from pfmembrane.studies import bench
 from pfmembrane.studies.sequence import iterations
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import limit, sizing
+from pfmembrane.analysis import levelset, sizing
 from pfmembrane.kernels.functionals import F_E
 from pfmembrane.io.options import Params
 from pfmembrane.paper import PAPER_BOX
@@ -59,7 +59,7 @@ def measure(path, eps):
     a['bulk_predicted'] = a['nu_volume'] * eps ** 3 / (8 * F_E)
     rb, zb = a['box']
     a['bulk_volume'] = a['bulk'] * math.pi * rb * rb * zb / 2 / a['volume']
-    a['vesicle_volume'] = limit.enclosed_volume(limit.level_set(ckpt)) / a['volume']
+    a['vesicle_volume'] = levelset.enclosed_volume(levelset.level_set(ckpt)) / a['volume']
     return a
 
 
@@ -97,7 +97,7 @@ def markdown(rows, args):
               "the box: the smaller the box, the less of V0 the bulk supplies. The effect falls "
               "like eps^3 and vanishes in the sharp-interface limit; the half box, which keeps "
               "the box, changes nothing. `V(phi_h > 0)` is the volume inside the zero level set "
-              "(`limit.enclosed_volume`)."]
+              "(`levelset.enclosed_volume`)."]
     return '\n'.join(lines) + '\n'
 
 

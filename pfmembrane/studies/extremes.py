@@ -42,7 +42,7 @@ from pfmembrane.io import checkpoint
 from pfmembrane.studies import launch
 from pfmembrane.studies.bench import machine, machine_line
 from pfmembrane.io.checkpoint import CheckpointError
-from pfmembrane.analysis.limit import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
+from pfmembrane.analysis.levelset import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
 from pfmembrane.studies.sequence import converged
 from pfmembrane.paper import SCENE_FILES as SCENE
 
@@ -607,7 +607,7 @@ def describe(nprocs, timeout, conditions):
         "Columns: eps/eps_min against the grid's resolution limit (from the checkpoint, or "
         "from the grid line a refused run prints); E vs: relative to the same scene with one "
         "setting changed; E sharp, vs sharp, d sharp: the axisymmetric sharp-interface shape of "
-        "the scene (`pfmembrane.analysis.sharp`; for the sphere E sharp = 2 pi k = 6.28319, the paper's "
+        "the scene (`pfmembrane.sharp`; for the sphere E sharp = 2 pi k = 6.28319, the paper's "
         "normalization with H the mean curvature), the relative energy error and the largest "
         "distance from phi_h = 0 to its curve; v of phi_h=0: reduced volume of the surface "
         "phi_h = 0 itself; its: stage 1 inner + stage 2 Newton iterations; max abs phi: over "

@@ -4,14 +4,14 @@
 
 For the discocyte and the dumbbell it reads the checkpoints of the adaptive sequence,
 RUNS/adapt/<shape>/<grid>_eps<eps>.h5, and the single run RUNS/<shape>.h5, those that exist,
-and draws with `pfmembrane.analysis.plot` and `pfmembrane.analysis.limit`:
+and draws with `pfmembrane.analysis.plot` and `pfmembrane.analysis.levelset`:
 
 - the phase field with the nodes of every checkpoint (Figures 7, 10);
 - phi along the cutline z = Zb / 2 for the smallest eps of every grid of the sequence, with a
   zoom on the interface and the sharp-interface step (Figure 8c-e);
 - the nodal spacing histograms of the grids of the sequence (Figure B.11);
 - the zero level sets of the same checkpoints against the sharp interface (Figure 8b, by
-  `python -m pfmembrane.analysis.limit`, which also writes its table);
+  `python -m pfmembrane.analysis.levelset`, which also writes its table);
 - the discocyte and the dumbbell revolved about the axis (Figure 5), and the shapes of the
   branches under RUNS/branches (Figure 6, `python -m pfmembrane.studies.branch`).
 
@@ -31,7 +31,7 @@ import numpy as np
 from matplotlib.path import Path
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import limit, plot
+from pfmembrane.analysis import levelset, plot
 from pfmembrane.studies.branch import checkpoints as branch_checkpoints
 from pfmembrane.studies.sequence import grid_name
 
@@ -151,7 +151,7 @@ def _sharp_step(ckpt, samples=2000):
     """(r, phi) of the sharp-interface shape of the checkpoint's scene along
     z = Zb / 2: +1 inside, -1 outside; None without a sharp counterpart."""
     try:
-        shape = limit.reference(*(ckpt.attrs[key] for key in
+        shape = levelset.reference(*(ckpt.attrs[key] for key in
                                   ('branch', 'reduced_volume', 'c0', 'radius', 'k')))
     except (KeyError, ValueError, RuntimeError):
         return None
@@ -182,11 +182,11 @@ def spacing_figure(shape, ckpts, index, dpi):
 
 
 def limit_figure(shape, paths, index):
-    """Figure 8b and its table, by the command line of `pfmembrane.analysis.limit`."""
+    """Figure 8b and its table, by the command line of `pfmembrane.analysis.levelset`."""
     out = os.path.join(index.out, f"{shape}_limit")
     errors = io.StringIO()
     with contextlib.redirect_stderr(errors):
-        status = limit.main([*paths, '--out', out])
+        status = levelset.main([*paths, '--out', out])
     if status != 0:
         index.note(f"no sharp-interface figure for the {shape}: {errors.getvalue().strip()}")
         return
@@ -198,7 +198,7 @@ def revolved(figure, ckpts):
     """One 3D axes per checkpoint, in a row of `figure`, with its membrane revolved
     (`pfmembrane.analysis.plot.plot_3d`), all framed at one scale on the membranes: plot_3d
     shows the whole box, where a vesicle is small. Returns the axes."""
-    curves = [limit.membrane(c) for c in ckpts]
+    curves = [levelset.membrane(c) for c in ckpts]
     axes = [plot.plot_3d(c, ax=figure.add_subplot(1, len(ckpts), i, projection='3d'), curve=curve)
             for i, (c, curve) in enumerate(zip(ckpts, curves), start=1)]
     outlines = [np.vstack(curve) - [0.0, 0.5 * c.box[1]] for c, curve in zip(ckpts, curves) if curve]

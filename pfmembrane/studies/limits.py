@@ -15,7 +15,7 @@ the phase field cannot split: two tanh spheres with the area A0 hold more than V
 apart goes to two spheres of radius near R / sqrt 2, reported after stage 1: apart, they
 feel each other only through terms in exp(-gap / eps), so no Newton iteration settles
 their distance. All in one process on NP ranks (started under mpiexec if need be);
-existing checkpoints are reused. The level set of phi_h is measured by `analysis.limit`:
+existing checkpoints are reused. The level set of phi_h is measured by `analysis.levelset`:
 its topology, the torus's own energy (`loop_energy`) and radii, and the upper lobe's half
 height, largest r and neck radius (`lobe`).
 """
@@ -130,11 +130,11 @@ def lobe(curve, zc):
 def measure(ckpt):
     """Topology of phi_h = 0, each torus's energy and (tube, centre-line) radii, and the
     `lobe` above the box's mid-plane."""
-    from pfmembrane.analysis import limit
-    field = limit.PhaseField(ckpt)
-    curve = limit.level_set(ckpt, field=field)
-    shape = limit.topology(curve, ckpt.box)
-    tori = [limit.loop_energy(ckpt, piece, field) for piece in curve
+    from pfmembrane.analysis import levelset
+    field = levelset.PhaseField(ckpt)
+    curve = levelset.level_set(ckpt, field=field)
+    shape = levelset.topology(curve, ckpt.box)
+    tori = [levelset.loop_energy(ckpt, piece, field) for piece in curve
             if piece[:, 0].min() > 1e-3 * max(ckpt.box)]
     return shape['label'], tori, lobe(curve, 0.5 * ckpt.box[1])
 

@@ -75,13 +75,13 @@ def plot(result, m, chi, value, index, path):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     import matplotlib.tri as mtri
-    from pfmembrane.analysis import limit
+    from pfmembrane.analysis import levelset
     from pfmembrane.io.checkpoint import Checkpoint
 
     ckpt = result.checkpoint().unfolded()
     mode = Checkpoint(result.nodes, chi, result.attrs).unfolded()
-    field, chi_h = limit.PhaseField(ckpt), limit.PhaseField(mode)
-    curve = limit.membrane(ckpt, field=field)
+    field, chi_h = levelset.PhaseField(ckpt), levelset.PhaseField(mode)
+    curve = levelset.membrane(ckpt, field=field)
     fig = plt.figure(figsize=(11, 5))
     ax3 = fig.add_subplot(1, 2, 1, projection='3d')
     ax2 = fig.add_subplot(1, 2, 2)

@@ -51,7 +51,7 @@ SHARP_V = (0.71, 0.72, 0.73, 0.74, 0.75, 0.8, 0.85, 0.9)
 def sharp_line(vs=SHARP_V):
     """(v, reduced c0 of D_pe) of the sharp prolate, from a scan in c0 by 0.1 from 1.5 to
     8 and `sharp.pear_bifurcation` on the first sign change; nan where there is none."""
-    from pfmembrane.analysis import sharp
+    from pfmembrane.sharp import solver as sharp
     line = []
     for v in vs:
         grid = np.arange(1.5, 8.0 + 1e-9, 0.1)
@@ -64,14 +64,14 @@ def sharp_line(vs=SHARP_V):
 
 def state(res):
     """What a row keeps of a point; the asymmetry and level-set energy from phi_h = 0."""
-    from pfmembrane.analysis import limit
+    from pfmembrane.analysis import levelset
     a = res.attrs
-    curve = limit.level_set(res.checkpoint().unfolded())
+    curve = levelset.level_set(res.checkpoint().unfolded())
     return dict(c0=2 * RADIUS * float(a['c0']), E=float(a['energy']),
                 level=float(a.get('level_set_energy', math.nan)), nu_A=float(a['nu_area']),
                 nu_V=float(a['nu_volume']), index=int(a.get('index_0', -1)),
                 fold=int(a.get('fold', 0)), topology=str(a.get('topology', 'none')),
-                asymmetry=limit.up_down_asymmetry(curve, RADIUS) if curve else math.nan,
+                asymmetry=levelset.up_down_asymmetry(curve, RADIUS) if curve else math.nan,
                 its=int(a.get('stage2_iterations', -1)), converged=int(a['converged']))
 
 

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 import pfmembrane as pf
-from pfmembrane.analysis import limit
+from pfmembrane.analysis import levelset
 from pfmembrane.studies import atlas
 
 b = atlas.load(sys.argv[1])
@@ -16,7 +16,7 @@ box = b['box']
 r, z = np.meshgrid(np.linspace(0, box[0], 120), np.linspace(0, box[1], 210))
 points = np.column_stack([r.ravel(), z.ravel()])
 beta = shapes[0].locality()
-fields = [limit.PhaseField(s.checkpoint(), beta)(points) for s in shapes[:6]]
+fields = [levelset.PhaseField(s.checkpoint(), beta)(points) for s in shapes[:6]]
 phi = shapes[0].phi
 print(f"{sys.argv[1]}: {len(phi)} nodes, basis {shapes[0].basis}; nodal values: largest "
       f"{np.abs(phi).max():.4g}, RMS {np.sqrt(np.mean(phi ** 2)):.3g}")
