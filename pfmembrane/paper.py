@@ -5,6 +5,8 @@ Keys: scene branch ('oblate' discocyte, 'prolate' dumbbell), grid (node
 count of a uniform grid, or the Table B.6 identifier of an adapted one),
 eps. The 296,344-node uniform grid is the paper's finest.
 """
+import os
+
 PAPER_BOX = (1.5, 2.0)  # (Rb, Zb) of every scene of the paper
 
 
@@ -51,3 +53,15 @@ SHARP_ERROR = {  # Table 4: relative error (%) of adapted discocytes against SHA
 # reduced volume v, spontaneous curvature C0, radius R of the sphere of equal area,
 # bending rigidity k, the (r, z) box, the family of the initial guess.
 SCENE = dict(reduced_volume=0.8, c0=0.0, radius=0.4, k=1.0, box=PAPER_BOX, branch='oblate')
+
+
+def grid_name(path):
+    """The grid of a checkpoint named <grid>_eps<eps>.h5 (its stem otherwise)."""
+    return os.path.splitext(os.path.basename(path))[0].split('_eps')[0]
+
+
+def paper_grid(attrs):
+    """The paper's node count of the grid a checkpoint's nodes stand for; a half
+    box holds half the nodes of its full-box grid."""
+    n = int(attrs['n_nodes']) * (2 if attrs.get('symmetric', 0) else 1)
+    return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))

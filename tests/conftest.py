@@ -81,7 +81,7 @@ MID_STAGE1 = re.compile(r'^\s*AL\s+1\s')
 def child_env():
     """The environment of a child run: Python's copy of this process's (the C one holds,
     once MPI is initialised here, variables that make a child mpiexec fail at once; see
-    pfmembrane.studies.launch), MPI_ENV, and this checkout first on PYTHONPATH."""
+    pfmembrane.series), MPI_ENV, and this checkout first on PYTHONPATH."""
     env = dict(os.environ)
     env.update(MPI_ENV)
     env['PYTHONPATH'] = os.pathsep.join([str(ROOT), *filter(None, [env.get('PYTHONPATH')])])
@@ -89,7 +89,7 @@ def child_env():
 
 
 def mpi_command(n, *args):
-    """`mpiexec -n N python ARGS...` with this interpreter (pfmembrane.studies.launch.command
+    """`mpiexec -n N python ARGS...` with this interpreter (pfmembrane.series.command
     with `-m MODULE` for ARGS)."""
     return ['mpiexec', '-n', str(n), sys.executable, *map(str, args)]
 
@@ -132,8 +132,8 @@ def mpiexec(*args, n=2, cwd=ROOT, timeout=TIMEOUT):
 
 def pfm(*args, n=2, timeout=TIMEOUT):
     """`mpiexec -n N python -m pfmembrane ARGS...` in the repository, by the drivers'
-    command line (pfmembrane.studies.launch.command)."""
-    from pfmembrane.studies import launch
+    command line (pfmembrane.series.command)."""
+    from pfmembrane import series as launch
     return run(launch.command(n, *map(str, args)), timeout=timeout)
 
 
@@ -314,7 +314,7 @@ def on_groups(tmp_path, root):
     tmp_path/one, then on two ranks as two groups of one (`--groups 2`) into tmp_path/two,
     as a test launching its own mpiexec (skipped under one); returns the two directories
     and the second run's output. Each run must exit with 0."""
-    from pfmembrane.studies.launch import under_mpiexec
+    from pfmembrane.series import under_mpiexec
     if under_mpiexec():
         pytest.skip('launches its own mpiexec')
 

@@ -11,7 +11,7 @@ import pytest
 
 import pfmembrane as pf
 from pfmembrane.io.options import UsageError
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 
 pytestmark = pytest.mark.slow
 

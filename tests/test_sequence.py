@@ -5,7 +5,8 @@ import h5py
 import pytest
 
 from pfmembrane.io import checkpoint
-from pfmembrane.studies import launch, sequence
+from pfmembrane import series as launch
+from pfmembrane.studies import sequence
 from pfmembrane.paper import SHARP, SHARP_ERROR
 
 SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'

@@ -1,17 +1,23 @@
 """One run of the application's options (`io.options.Params`): its scene,
 start, grid and solve through the API, and its checkpoint.
 
-The command line runs one; the study drivers run many in one process with a
-`Cache`, so that a step on the grid of an earlier step reuses that grid (its
-basis, operators and partition) and starts from its result in memory.
+The command line runs one; a study runs many in one process with a `Cache`,
+so that a step on the grid of an earlier step reuses that grid (its basis,
+operators and partition) and starts from its result in memory. Public for
+studies, with the helpers that read a sequence of options files (`steps_of`,
+`option_of`, `output_of`, `converged`).
 """
+import glob
 import os
+import re
+import sys
 import time
 from dataclasses import dataclass, field, fields
 
+import h5py
 import numpy as np
 
-from pfmembrane import api
+import pfmembrane as pf
 from pfmembrane.io import options
 from pfmembrane.starts import check_fits
 
@@ -28,20 +34,20 @@ def start_of(p, comm, cache, start=None):
     given) and the scene, whose box is the checkpoint's on a restart and `auto`
     sized for a fresh start."""
     if not p.restart:
-        scene = api.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
+        scene = pf.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
         scene = scene.sized(p.eps)
         check_fits(scene, p.eps)
         return None, scene
     start = start or cache.results.get(os.path.abspath(p.restart))
     if start is None or (p.box != 'auto' and not np.allclose(start.attrs['box'], p.box)):
         # -pf_box auto continues in the checkpoint's box
-        start = api.read(p.restart, comm, expect_box=None if p.box == 'auto' else p.box)
+        start = pf.read(p.restart, comm, expect_box=None if p.box == 'auto' else p.box)
     half = bool(start.attrs.get('symmetric', 0))
     if half != p.symmetric:
         raise options.UsageError(
             f"-pf_restart {p.restart} holds a {'half' if half else 'full'}-box solution: "
             f"{'add' if half else 'remove'} -pf_symmetric to continue it")
-    return start, api.Scene(p.reduced_volume, p.c0, p.radius, p.k,
+    return start, pf.Scene(p.reduced_volume, p.c0, p.radius, p.k,
                             tuple(start.attrs['box']), p.branch, p.symmetric)
 
 
@@ -53,14 +59,14 @@ def grid_of(p, scene, start, comm, cache):
                   spacing_smoothing=p.spacing_smoothing, spacing_floor=p.spacing_floor,
                   partition=p.partition)
     if start is not None and p.adapt:
-        return api.adapt(start, p.adapt, comm=comm, band=p.adapt_band, **params)
+        return pf.adapt(start, p.adapt, comm=comm, band=p.adapt_band, **params)
     if start is not None:
         if start.grid is not None and start.grid.params == params and start.grid.fits(scene):
             return start.grid
-        return api.Grid(scene, start.nodes, comm=comm, **params)
+        return pf.Grid(scene, start.nodes, comm=comm, **params)
     key = (scene.box, scene.symmetric, p.nodes, tuple(sorted(params.items())))
     if key not in cache.grids:
-        cache.grids[key] = api.Grid.uniform(scene, p.nodes, comm=comm, **params)
+        cache.grids[key] = pf.Grid.uniform(scene, p.nodes, comm=comm, **params)
     return cache.grids[key]
 
 
@@ -72,7 +78,7 @@ def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, star
     `solve_options` (command-line names without the dash) go to the solve
     under `prefix` (by default one of its own), `modes_options` to the mode
     analysis; the solve prints a line per stage. `start` (a `Result`, such as
-    `api.predict`'s) replaces the restart's own. Returns (result, checkpoint
+    `pf.predict`'s) replaces the restart's own. Returns (result, checkpoint
     path).
     """
     cache = cache if cache is not None else Cache()
@@ -94,17 +100,17 @@ def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, star
     print_fn(f"grid: {grid.n_nodes} nodes ({d.layout.nglobal} free), {d.nquad} quadrature "
              f"points, eps_min {grid.eps_min:.4g}, set-up {t_setup:.2f} s"
              f"{'' if fresh else ' (grid reused)'}")
-    res = api.solve(scene, grid, p.eps, start=start,
+    res = pf.solve(scene, grid, p.eps, start=start,
                     options={**(solve_options or {}), 'pf_summary': True}, prefix=prefix,
                     checks=True)
     if p.modes >= 0 and res.converged:
-        api.stability(res, p.modes, options=modes_options, prefix=prefix)
+        pf.stability(res, p.modes, options=modes_options, prefix=prefix)
     # The run's own clocks: reading the restart and adapting count too.
     res.attrs.update(wall_time=time.perf_counter() - t_start, time_setup=t_setup,
                      parent=p.restart)
     if comm.getRank() == 0:
         os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
-    stage = api.petsc().Log.Stage('pfCheckpoint')
+    stage = pf.petsc().Log.Stage('pfCheckpoint')
     stage.push()
     try:
         res.save(output)
@@ -119,8 +125,8 @@ def solved(scene_file, args, path, cache, print_fn=None):
     `-pf_output path`: read back if `path` exists, else solved on COMM_WORLD
     and summarized. Collective."""
     if os.path.exists(path):
-        return api.read(path)
-    PETSc = api.petsc()
+        return pf.read(path)
+    PETSc = pf.petsc()
     print_fn = print_fn or PETSc.Sys.Print
     table = options.Table.from_files(scene_file, args=[*args, '-pf_output', path])
     res, _ = execute(options.read(table), PETSc.COMM_WORLD, print_fn, solver_options(table),
@@ -181,3 +187,34 @@ def summary(res, output, print_fn):
                  f"{' '.join(format(v, '.4g') for v in a['lowest_m'])} "
                  + (f"(UNSTABLE to m = {', '.join(map(str, unstable))})" if unstable
                     else "(stable)") + f", {a['time_modes']:.2f} s")
+
+
+def option_of(step, name):
+    """The last value an options file gives -name, or None."""
+    with open(step) as f:
+        found = re.findall(rf'^\s*-{name}\s+(\S+)', f.read(), flags=re.M)
+    return found[-1] if found else None
+
+
+def steps_of(directory):
+    """The step options files of a sequence directory, in run order."""
+    steps = sorted(glob.glob(os.path.join(directory, '*.opts')))
+    if not steps:
+        sys.exit(f"{directory}: no options files")
+    return steps
+
+
+def output_of(step):
+    """The -pf_output path an options file names."""
+    out = option_of(step, 'pf_output')
+    if out is None:
+        sys.exit(f"{step}: names no -pf_output")
+    return out
+
+
+def converged(path):
+    try:
+        with h5py.File(path, 'r') as f:
+            return bool(f.attrs['converged'])
+    except (OSError, KeyError):
+        return False

@@ -58,7 +58,7 @@ import numpy as np
 from pfmembrane.analysis.checks import phase_field_checks
 from pfmembrane.io.options import HELP, Params, UsageError
 from pfmembrane.paper import paper_spacing
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 
 RADIUS = 0.4
 V_MIN, V_MAX = 0.55, 0.95

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 from pfmembrane import paper
 from pfmembrane.paper import PAPER_BOX
 

@@ -34,10 +34,11 @@ import h5py
 import numpy as np
 
 from pfmembrane.io import checkpoint
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 from pfmembrane.kernels.nodes import nodal_spacing, uniform
 from pfmembrane.io.options import BRANCHES
-from pfmembrane.studies.sequence import iterations, option_of
+from pfmembrane.report import iterations
+from pfmembrane.cli.runner import option_of
 from pfmembrane.analysis.sizing import required_box
 from pfmembrane.paper import PAPER_BOX
 

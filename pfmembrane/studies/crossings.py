@@ -28,8 +28,8 @@ from scipy.optimize import brentq
 
 from pfmembrane.sharp import solver as sharp
 from pfmembrane.paper import paper_spacing
-from pfmembrane.studies import launch
-from pfmembrane.studies.sequence import iterations
+from pfmembrane import series as launch
+from pfmembrane.report import iterations
 
 RADIUS = 0.4
 # name: (the branch of least energy above the crossing, the one below, the bracket in v,

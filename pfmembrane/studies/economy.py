@@ -19,7 +19,7 @@ import os
 import numpy as np
 
 from pfmembrane.studies import bench
-from pfmembrane.studies.sequence import iterations
+from pfmembrane.report import iterations
 from pfmembrane.io import checkpoint
 from pfmembrane.analysis import levelset, sizing
 from pfmembrane.kernels.functionals import F_E

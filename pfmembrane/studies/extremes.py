@@ -39,11 +39,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from pfmembrane.io import checkpoint
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 from pfmembrane.studies.bench import machine, machine_line
 from pfmembrane.io.checkpoint import CheckpointError
 from pfmembrane.analysis.levelset import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
-from pfmembrane.studies.sequence import converged
+from pfmembrane.cli.runner import converged
 from pfmembrane.paper import SCENE_FILES as SCENE
 
 # Grid and eps of every case unless its options say otherwise (later options win).

@@ -33,7 +33,7 @@ from matplotlib.path import Path
 from pfmembrane.io import checkpoint
 from pfmembrane.analysis import levelset, plot
 from pfmembrane.studies.branch import checkpoints as branch_checkpoints
-from pfmembrane.studies.sequence import grid_name
+from pfmembrane.paper import grid_name
 
 # Shape name and the paper's figure of its adapted grids.
 SHAPES = (('discocyte', '7'), ('dumbbell', '10'))

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
 
 # (eps, nodes) of each limit, the grid resolving the smallest eps on its box.
 # Budding: nodes are the spacing of that many in the paper box.

@@ -29,7 +29,8 @@ import types
 import numpy as np
 
 from pfmembrane.io.options import Params
-from pfmembrane.studies import atlas, launch
+from pfmembrane import series as launch
+from pfmembrane.studies import atlas
 
 RADIUS = atlas.RADIUS
 # (eps, nodes, eps of the uniform grid whose solution the CVT adapts to or None, start c0,

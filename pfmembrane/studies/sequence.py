@@ -13,48 +13,18 @@ a step whose start did not converge is not run. `--report` only writes the
 table of the checkpoints that exist.
 """
 import argparse
-import glob
 import os
-import re
 import sys
 import time
 
 import h5py
 import numpy as np
 
-from pfmembrane.studies import launch
+from pfmembrane import series as launch
+from pfmembrane.cli.runner import converged, option_of, output_of, steps_of
+from pfmembrane.paper import grid_name, paper_grid
+from pfmembrane.report import iterations
 from pfmembrane.paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
-
-
-def option_of(step, name):
-    """The last value an options file gives -name, or None."""
-    with open(step) as f:
-        found = re.findall(rf'^\s*-{name}\s+(\S+)', f.read(), flags=re.M)
-    return found[-1] if found else None
-
-
-def steps_of(directory):
-    """The step options files of a sequence directory, in run order."""
-    steps = sorted(glob.glob(os.path.join(directory, '*.opts')))
-    if not steps:
-        sys.exit(f"{directory}: no options files")
-    return steps
-
-
-def output_of(step):
-    """The -pf_output path an options file names."""
-    out = option_of(step, 'pf_output')
-    if out is None:
-        sys.exit(f"{step}: names no -pf_output")
-    return out
-
-
-def converged(path):
-    try:
-        with h5py.File(path, 'r') as f:
-            return bool(f.attrs['converged'])
-    except (OSError, KeyError):
-        return False
 
 
 def run(steps, scene, force=False):
@@ -141,23 +111,6 @@ def _setup(a):
     where a grid was made and recorded."""
     cvt = a.get('time_adapt', np.nan)
     return f"{a['time_setup']:.1f}" + ('' if np.isnan(cvt) else f" ({cvt:.1f})")
-
-
-def grid_name(path):
-    """The grid of a checkpoint named <grid>_eps<eps>.h5 (its stem otherwise)."""
-    return os.path.splitext(os.path.basename(path))[0].split('_eps')[0]
-
-
-def paper_grid(attrs):
-    """The paper's node count of the grid a checkpoint's nodes stand for; a half
-    box holds half the nodes of its full-box grid."""
-    n = int(attrs['n_nodes']) * (2 if attrs.get('symmetric', 0) else 1)
-    return min((6124, 12271, 24597, FINEST), key=lambda m: abs(m - n))
-
-
-def iterations(n):
-    """Iteration count, '-' for a stage that did not run."""
-    return '-' if n < 0 else str(int(n))
 
 
 def _num(v):

@@ -28,8 +28,8 @@ import numpy as np
 
 from pfmembrane.io.options import BRANCHES
 from pfmembrane.paper import paper_spacing
-from pfmembrane.studies import launch
-from pfmembrane.studies.sequence import iterations
+from pfmembrane import series as launch
+from pfmembrane.report import iterations
 
 RADIUS = 0.4
 VOLUMES = [round(0.95 - 0.05 * i, 2) for i in range(9)]

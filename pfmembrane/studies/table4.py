@@ -17,7 +17,8 @@ import sys
 import h5py
 
 from pfmembrane.paper import FINEST, SHARP, SHARP_ERROR
-from pfmembrane.studies.sequence import converged, grid_name, output_of, paper_grid, steps_of
+from pfmembrane.cli.runner import converged, output_of, steps_of
+from pfmembrane.paper import grid_name, paper_grid
 
 COLUMNS = (0.03, 0.025, 0.02, 0.015, 0.01, 0.007, 0.005)
 

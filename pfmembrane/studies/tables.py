@@ -13,8 +13,8 @@ import argparse
 import os
 import sys
 
-from pfmembrane.studies import launch
-from pfmembrane.studies.sequence import iterations
+from pfmembrane import series as launch
+from pfmembrane.report import iterations
 from pfmembrane.paper import FINEST, SCENE_FILES, UNIFORM
 
 

@@ -1,7 +1,13 @@
-"""Child runs under mpiexec, for the drivers (tables, benchmarks, the
-stability study, and the in-process drivers started without mpiexec): the
-one place that builds an mpiexec line and the environment it runs in, and
-splits the ranks of such a run into groups."""
+"""Independent series of solves, for studies and for users with many scenes:
+runs under mpiexec started from a script (the one place that builds an
+mpiexec line and the environment it runs in), the ranks of such a run split
+into groups that each take their share of the pieces, and the command-line
+arguments such a study shares (`--np`, `--groups`, grids, solver options).
+
+A script `runs/<study>/<study>.py` calls `ensure_ranks(np, __file__, argv)`
+(or `on_groups`) and is restarted under `mpiexec -n NP` when it was started
+without it; `module` may be a module name (`python -m MODULE`) or a script
+path."""
 import os
 import subprocess
 import sys
@@ -10,11 +16,13 @@ from contextlib import contextmanager
 
 
 def command(nprocs, *args, module='pfmembrane'):
-    """`mpiexec -n NPROCS python -m MODULE ARGS...` with this interpreter, and
-    the mpiexec installed beside it if there is one (`make install`'s)."""
+    """`mpiexec -n NPROCS python -m MODULE ARGS...` (or `python SCRIPT ARGS...`
+    for a `module` ending in .py) with this interpreter, and the mpiexec
+    installed beside it if there is one (`make install`'s)."""
     beside = os.path.join(os.path.dirname(sys.executable), 'mpiexec')
     mpiexec = beside if os.access(beside, os.X_OK) else 'mpiexec'
-    return [mpiexec, '-n', str(nprocs), sys.executable, '-m', module, *args]
+    target = [os.path.abspath(module)] if module.endswith('.py') else ['-m', module]
+    return [mpiexec, '-n', str(nprocs), sys.executable, *target, *args]
 
 
 def environment():
