@@ -97,9 +97,9 @@ test-fast: install
 	$(PY) -m pytest -q -m 'not slow and not mpi' tests
 
 tables: install
-	$(PY) -m pfmembrane.studies.tables --np $(NP) --out runs/tables
+	$(PY) runs/tables/tables.py --np $(NP) --out runs/tables
 
-SEQUENCE = $(PY) -m pfmembrane.studies.sequence --np $(NP)
+SEQUENCE = $(PY) runs/adapt/sequence.py --np $(NP)
 adapt-discocyte: install
 	$(SEQUENCE) options/adapt/discocyte --scene options/discocyte.opts
 adapt-dumbbell: install
@@ -121,55 +121,55 @@ adapt: adapt-discocyte adapt-dumbbell adapt-12271 adapt-24597 adapt-dumbbell-122
 TABLE4_SEQUENCES = $(addprefix options/adapt/,discocyte discocyte_half discocyte_12271 \
                    discocyte_24597 discocyte_24597_half)
 table4: install
-	$(PY) -m pfmembrane.studies.table4 $(TABLE4_SEQUENCES) --out runs/adapt/table4.md
+	$(PY) runs/adapt/table4.py $(TABLE4_SEQUENCES) --out runs/adapt/table4.md
 
 bench: install
-	$(PY) -m pfmembrane.studies.bench solve --out runs/bench
+	$(PY) runs/bench/bench.py solve --out runs/bench
 
 bench-basis: install
-	$(PY) -m pfmembrane.studies.bench basis --out runs/bench
+	$(PY) runs/bench/bench.py basis --out runs/bench
 
 bench-scenes: install
-	$(PY) -m pfmembrane.studies.economy --out runs/bench --np $(NP)
+	$(PY) runs/bench/economy.py --out runs/bench --np $(NP)
 
 # Both branches run even if one stops early; the target fails if either did. A restarted step
 # starts near its answer, so stage 1 stops after one iteration at its default constraint
 # residual (1e-3); from there stage 2 does not converge at the prolate v = 0.65. It does after
 # a tighter stage 1.
-BRANCH = $(PY) -m pfmembrane.studies.branch --np $(NP) --from 0.95 --to 0.65 --step 0.05 --out runs/branches
+BRANCH = $(PY) runs/branches/branch.py --np $(NP) --from 0.95 --to 0.65 --step 0.05 --out runs/branches
 BRANCH_OPTIONS = -- -pf_stage1_rtol 1e-5
 branches: install
 	@status=0; \
 	$(BRANCH) --branch oblate $(BRANCH_OPTIONS) || status=1; \
 	$(BRANCH) --branch prolate $(BRANCH_OPTIONS) || status=1; \
-	$(PY) -m pfmembrane.studies.branch --plot runs/branches && exit $$status
+	$(PY) runs/branches/branch.py --plot runs/branches && exit $$status
 
 figures: install
-	$(PY) -m pfmembrane.studies.figures --out runs/figures
+	$(PY) runs/figures/figures.py --out runs/figures
 
 extremes: install
-	$(PY) -m pfmembrane.studies.extremes --np $(NP) --out runs/extremes
+	$(PY) runs/extremes/extremes.py --np $(NP) --out runs/extremes
 
 limits: install
-	$(PY) -m pfmembrane.studies.limits --np $(NP) --out runs/limits
+	$(PY) runs/limits/limits.py --np $(NP) --out runs/limits
 
 pears: install
-	$(PY) -m pfmembrane.studies.pears --sharp --out runs/pears
-	$(PY) -m pfmembrane.studies.pears --np $(NP) --v 0.8 --out runs/pears $(FORCE)
+	$(PY) runs/pears/pears.py --sharp --out runs/pears
+	$(PY) runs/pears/pears.py --np $(NP) --v 0.8 --out runs/pears $(FORCE)
 
 clean:
 	rm -rf $(VENV) runs/check.h5
 
 crossings: install
-	$(PY) -m pfmembrane.studies.crossings --np $(NP) --eps 0.01 --nodes 84000 --branch stomatocyte oblate prolate --out runs/crossings
+	$(PY) runs/crossings/crossings.py --np $(NP) --eps 0.01 --nodes 84000 --branch stomatocyte oblate prolate --out runs/crossings
 
 # The atlas's branches keep in runs/atlas/branches: a second run redraws from them; FORCE=--force
 # follows them again. Below the oblate fold of eps 0.02 the diagram needs eps 0.01
 # (runs/atlas/notes.md): the oblate and stomatocyte families at c0 <= 0 in atlases of their
 # own, and the pears (full box) in a third, merged with the first into runs/atlas/merged.
 phase-diagram: install
-	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups $(NP) --eps 0.02 --nodes 25000 --ds 0.05 --out runs/atlas $(FORCE)
-	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups 1 --eps 0.01 --nodes 84000 --ds 0.15 --steps 120 --families oblate --c0 -1 -0.5 0 --out runs/atlas/oblate $(FORCE)
-	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups $(NP) --eps 0.01 --nodes 84000 --ds 0.15 --steps 40 --families stomatocyte --c0 -1 -0.5 0 --out runs/atlas/stomatocyte $(FORCE)
-	$(PY) -m pfmembrane.studies.atlas --np $(NP) --groups 1 --eps 0.02 --nodes 25000 --ds 0.2 --steps 120 --families pear --c0 2.5 --out runs/atlas/pear_eps0.02 $(FORCE)
-	$(PY) -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/oblate runs/atlas/stomatocyte runs/atlas/pear_eps0.02 --out runs/atlas/merged
+	$(PY) runs/atlas/atlas.py --np $(NP) --groups $(NP) --eps 0.02 --nodes 25000 --ds 0.05 --out runs/atlas $(FORCE)
+	$(PY) runs/atlas/atlas.py --np $(NP) --groups 1 --eps 0.01 --nodes 84000 --ds 0.15 --steps 120 --families oblate --c0 -1 -0.5 0 --out runs/atlas/oblate $(FORCE)
+	$(PY) runs/atlas/atlas.py --np $(NP) --groups $(NP) --eps 0.01 --nodes 84000 --ds 0.15 --steps 40 --families stomatocyte --c0 -1 -0.5 0 --out runs/atlas/stomatocyte $(FORCE)
+	$(PY) runs/atlas/atlas.py --np $(NP) --groups 1 --eps 0.02 --nodes 25000 --ds 0.2 --steps 120 --families pear --c0 2.5 --out runs/atlas/pear_eps0.02 $(FORCE)
+	$(PY) runs/atlas/atlas.py --merge runs/atlas runs/atlas/oblate runs/atlas/stomatocyte runs/atlas/pear_eps0.02 --out runs/atlas/merged

@@ -1,7 +1,8 @@
 """Continuation of a branch of equilibria in a scene parameter: the secant and
 Euler predictors, the tangent and the critical mode from one factorization,
 Keller's pseudo-arclength corrector, step control, folds, bifurcations and
-branch switching.
+branch switching; where a branch is left (`bifurcation`, `asymmetric`,
+`topology_lost`).
 
 Written against a `parallel.problem.Problem`: its residual F(x, nu; p), its
 Jacobian factored (`Problem.jacobian`, with its inertia) and its parameter
@@ -14,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pfmembrane.analysis.checks import phase_field_checks
+from pfmembrane.analysis.checks import ENERGETIC, phase_field_checks
 from pfmembrane.parallel.problem import PARAMETERS, Problem, next_prefix
 from pfmembrane.parallel.solver import SolveError
 from pfmembrane.result import MULTIPLIERS, Result
@@ -348,3 +349,72 @@ def arclength(problem, x, parameter, p, t, ds, max_it=25, bend=None):
         raise SolveError(f"the arclength corrector did not converge in {max_it} Newton "
                          f"iterations (|F| {norm:.2e}); try a shorter step")
     return p, it, factored, problem.negative_pivots(ksp), problem.split(b)
+
+
+# Where a branch is left: its first bifurcation, a shape off its symmetry, a topology
+# without a level-set energy.
+REFINE = 4          # step ratio of each bracketing of a bifurcation (`bifurcation`)
+ASYMMETRY = 5e-3    # up-down asymmetry (over R) past which a full-box shape is a pear
+OTHER_TOPOLOGY = 3  # points of a topology without a level-set energy that end a branch
+
+
+def bifurcation(start, parameter, ds, steps, bound, options=None, say=None,
+                through_folds=True, left=None, scale=1.0):
+    """Where `start`'s branch, continued in `parameter` from steps `ds`
+    (`continuation`, at most `steps` points a bracketing), first changes its
+    stability index without a fold (a bifurcation passed).
+
+    Returns (a point just past that change, its `parameter`, whether it left
+    the branch), or (None, the farthest value reached, False) where there is
+    none before `bound`, before a fold (unless `through_folds`: then it goes
+    on past folds) or before the continuation ends. A point on which `left`
+    holds (it lost the branch's symmetry: `asymmetric`) counts as a change
+    too: near a pitchfork the corrector can land on the crossing branch, and
+    where that one turns back the step reads as a fold. The change is
+    bracketed again from the point before it with steps REFINE times shorter,
+    twice, so that a switch (`continuation(..., switch=True)`) starts near
+    the bifurcation. Each point is reported through `say`, its parameter
+    times `scale`; only the one returned gets the phase-field checks.
+    `options` as for `continuation`. Collective on the result's grid."""
+    sign = math.copysign(1.0, ds)
+    value = farthest = start.attrs[parameter]
+    before = start
+    for level in range(3):
+        for res in continuation(before, parameter, ds, steps,
+                                ds_max=abs(ds) if level else None, options=options,
+                                checks=False):
+            value = res.attrs[parameter]
+            farthest = max(farthest * sign, value * sign) * sign
+            jumped = bool(left and left(res))
+            if say is not None:
+                say(f"{parameter} {scale * value:.4f} index {res.attrs['index_0']} "
+                    f"(step {scale * abs(ds):g})" + (' fold' if res.attrs['fold'] else '')
+                    + (' off the branch' if jumped else ''))
+            if res.attrs['index_change'] or jumped:
+                break
+            if sign * (value - bound) > 0 or (res.attrs['fold'] and not through_folds):
+                return None, farthest, False
+            before = res
+        else:
+            return None, farthest, False
+        ds /= REFINE
+    res.attrs.update(phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
+                                        res.phi, res.attrs))
+    return res, value, jumped
+
+
+def asymmetric(result, tolerance=ASYMMETRY):
+    """Whether the level set phi_h = 0 of a full-box result is up-down
+    asymmetric by more than `tolerance` times its scene's radius
+    (`levelset.up_down_asymmetry`): a pear, not a prolate. A `left` of
+    `bifurcation`: every rank computes it alike."""
+    from pfmembrane.analysis import levelset
+    curve = levelset.level_set(result.checkpoint().unfolded())
+    return bool(curve) and abs(levelset.up_down_asymmetry(curve, result.scene.radius)) > tolerance
+
+
+def topology_lost(topologies, count=OTHER_TOPOLOGY):
+    """Whether the last `count` of a branch's topologies (of phi_h = 0, in
+    order) are all without a level-set energy (not in `checks.ENERGETIC`: a
+    bud pinched off, several spheres): where the studies end a branch."""
+    return len(topologies) >= count and all(t not in ENERGETIC for t in topologies[-count:])

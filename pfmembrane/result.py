@@ -135,3 +135,25 @@ def read(path, comm=None, expect_box=None):
         comm = comm.tompi4py()
     ck = checkpoint.read(path, comm, expect_box=expect_box)
     return Result(ck.nodes, ck.phi, ck.attrs, path=str(path), datasets=ck.datasets)
+
+
+def save_branch(path, results, comm=None, attrs=None):
+    """Write the points of a branch (`results`, in order: a continuation's, say)
+    and `attrs`, a JSON-able description of the branch as a whole, to one
+    versioned file (`io.checkpoint.write_branch`), atomically; its directory
+    must exist. Collective when `comm` (mpi4py or PETSc) is given: rank 0's
+    arguments are written and every rank returns or raises together."""
+    if comm is not None and hasattr(comm, 'tompi4py'):
+        comm = comm.tompi4py()
+    checkpoint.write_branch(path, [(r.nodes, r.phi, r.attrs) for r in results], attrs, comm)
+
+
+def read_branch(path, comm=None):
+    """(results, attrs): the points of a branch file as `Result`s (without their
+    grid), in order, and the branch's description; collective when `comm` is
+    given. A file of an unknown version is refused (`io.checkpoint.CheckpointError`);
+    one of the layout before the versioned one is read."""
+    if comm is not None and hasattr(comm, 'tompi4py'):
+        comm = comm.tompi4py()
+    points, attrs = checkpoint.read_branch(path, comm)
+    return [Result(p.nodes, p.phi, p.attrs) for p in points], attrs

@@ -17,7 +17,8 @@ test module cannot import this one by name.
     mpiexec     mpiexec(*args, n=2): this interpreter on n ranks
     pfm         pfm(*args, n=2): the application on n ranks, as the drivers launch it
     mpirun      mpirun(args): a 2-rank `Run` of the application to act on as it runs
-    on_groups   on_groups(module, *args): a driver on one rank, then on two groups of one
+    on_groups   on_groups(module, *args): a driver (module or script path) on one rank, then
+                on two groups of one
     md_tables   md_tables(text): the markdown tables of a generated page, cells by column
 
 Under pytest-xdist each worker gets an Open MPI session directory of its own (see
@@ -310,7 +311,8 @@ def in_root(mpi_env, monkeypatch):
 
 @pytest.fixture
 def on_groups(tmp_path, root):
-    """on_groups(module, *args): the driver `python -m module args` run on one rank into
+    """on_groups(module, *args): the driver `python -m module args` (`python ROOT/module
+    args` for a script path ending in .py, run from tmp_path) run on one rank into
     tmp_path/one, then on two ranks as two groups of one (`--groups 2`) into tmp_path/two,
     as a test launching its own mpiexec (skipped under one); returns the two directories
     and the second run's output. Each run must exit with 0."""
@@ -320,9 +322,11 @@ def on_groups(tmp_path, root):
 
     def run(module, *args):
         for n, out in ((1, 'one'), (2, 'two')):
-            done = subprocess.run([sys.executable, '-m', module, *args, '--np', str(n),
+            target = [str(root / module)] if module.endswith('.py') else ['-m', module]
+            done = subprocess.run([sys.executable, *target, *args, '--np', str(n),
                                    '--groups', str(n), '--out', str(tmp_path / out)],
-                                  cwd=root, env=child_env(), capture_output=True, text=True,
+                                  cwd=tmp_path if module.endswith('.py') else root,
+                                  env=child_env(), capture_output=True, text=True,
                                   timeout=600)
             assert done.returncode == 0, done.stderr[-2000:]
         assert '[group 1]' in done.stdout

@@ -1,15 +1,21 @@
-"""The shape atlas (pfmembrane.studies.atlas): what the phase diagram makes of branches
+"""The shape atlas (runs/atlas/atlas.py): what the phase diagram makes of branches
 (least energy, its regions and transitions, events, continuations of a branch), the
-branch files a later run reuses, and a small atlas run end to end."""
+branch files a later run reuses (`pfmembrane.result.save_branch`, `read_branch`), and a
+small atlas run end to end."""
 import json
 import math
 import subprocess
 import sys
 
+import h5py
 import numpy as np
 import pytest
 
-from pfmembrane.studies import atlas
+from pfmembrane.io.checkpoint import CheckpointError
+from pfmembrane.result import Result, read_branch, save_branch
+from scripts import load
+
+atlas = load('runs/atlas/atlas.py')
 
 
 def _point(v, level, topology='1 sphere', direction=-1, fold=0, bifurcation=0, index=0):
@@ -91,22 +97,64 @@ def test_an_adapted_switched_branch_resumes_at_the_last_point_of_index_0():
     assert atlas.last_stable([_point(0.9, 1.0, index=1)] * 3) == 0
 
 
+def _shapes(nodes, vs):
+    return [Result(nodes, np.arange(5.0) + i, dict(reduced_volume=v, box=np.array([1.0, 2.0]),
+                                                    branch='prolate', nu_area=float(i)))
+            for i, v in enumerate(vs)]
+
+
 def test_a_branch_file_gives_back_the_branch(tmp_path):
     nodes = np.random.default_rng(0).random((5, 2))
     b = _linear('prolate', 0.5, 7.0, 10.0, vs=[0.95, 0.9])
-    b['shapes'] = [(nodes, np.arange(5.0) + i, dict(reduced_volume=v, box=np.array([1.0, 2.0]),
-                                                   branch='prolate'))
-                   for i, v in enumerate((0.95, 0.9))]
+    b['shapes'] = _shapes(nodes, (0.95, 0.9))
+    b['bifurcation_v'] = math.nan
     path = tmp_path / 'b' / 'prolate_c0.5.h5'
     atlas.save(str(path), b)
     again = atlas.load(str(path))
-    assert again['points'] == b['points'] and again['c0'] == 0.5
-    np.testing.assert_array_equal(again['shapes'][1][1], np.arange(5.0) + 1)
-    np.testing.assert_array_equal(again['shapes'][0][0], nodes)
-    assert again['shapes'][1][2]['reduced_volume'] == 0.9
+    assert again['points'] == b['points'] and again['c0'] == 0.5 and again['box'] == (1.0, 1.0)
+    assert math.isnan(again['bifurcation_v'])
+    np.testing.assert_array_equal(again['shapes'][1].phi, np.arange(5.0) + 1)
+    np.testing.assert_array_equal(again['shapes'][0].nodes, nodes)
+    assert again['shapes'][0].nodes is again['shapes'][1].nodes  # stored once
+    assert again['shapes'][1].attrs['reduced_volume'] == 0.9
+    assert again['shapes'][1].attrs['nu_area'] == 1.0  # each point's own attributes
+    np.testing.assert_array_equal(again['shapes'][1].attrs['box'], [1.0, 2.0])
     empty = dict(b, points=[], shapes=[], ends=['no start (x)'])
     atlas.save(str(path), empty)
     assert atlas.load(str(path))['ends'] == ['no start (x)']
+
+
+def test_a_branch_file_of_an_unknown_version_is_refused(tmp_path):
+    path = tmp_path / 'b.h5'
+    save_branch(path, _shapes(np.zeros((5, 2)), (0.9,)), attrs={'c0': 1.0})
+    assert read_branch(path)[1] == {'c0': 1.0}
+    with h5py.File(path, 'r+') as f:
+        f.attrs['version'] = 99
+    with pytest.raises(CheckpointError, match='version 99 unknown'):
+        read_branch(path)
+    with h5py.File(path, 'r+') as f:
+        f.attrs['schema'] = 'something else'
+    with pytest.raises(CheckpointError, match='not a pfmembrane-branch file'):
+        read_branch(path)
+
+
+def test_a_branch_file_of_the_layout_before_the_schema_is_read(tmp_path):
+    """The unversioned layout atlas.py wrote before (one `nodes`, a `phi` row per point, the
+    description and the first point's attributes as JSON): every point gets those
+    attributes but for its own v."""
+    nodes = np.random.default_rng(1).random((5, 2))
+    b = _linear('oblate', 0.0, 7.0, 10.0, vs=[0.95, 0.9, 0.85])
+    path = tmp_path / 'oblate_c0.h5'
+    with h5py.File(path, 'w') as f:
+        f.attrs['branch'] = json.dumps({k: v for k, v in b.items() if k != 'shapes'})
+        f.attrs['scene'] = json.dumps(dict(reduced_volume=0.95, box=[1.0, 2.0], c0=0.0))
+        f['nodes'] = nodes
+        f['phi'] = np.arange(15.0).reshape(3, 5)
+    again = atlas.load(str(path))
+    assert again['points'] == b['points'] and again['box'] == (1.0, 1.0)
+    assert [s.attrs['reduced_volume'] for s in again['shapes']] == [p['v'] for p in b['points']]
+    np.testing.assert_array_equal(again['shapes'][2].phi, np.arange(10.0, 15.0))
+    np.testing.assert_array_equal(again['shapes'][2].nodes, nodes)
 
 
 SMALL = ['--eps', '0.06', '--nodes', '3000', '--families', 'prolate', 'oblate', '--c0', '1',
@@ -170,31 +218,31 @@ def _same(one, two, rtol=1e-8):
 
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, root):
+def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, root, tmp_path):
     """Two branches (prolate and oblate at c0 1), up to 5 points each, on two groups of one
     rank and on one rank: the same points; the figures and tables are written, a second
     run reuses the branch files, and the branches follow at a smaller eps on their nodes
-    adapted along them, with the basis parameters given."""
-    def atlas(*args):
-        done = subprocess.run([sys.executable, '-m', 'pfmembrane.studies.atlas', *SMALL, *args,
-                               '--np', '1'], cwd=root, env=child_env, capture_output=True,
-                              text=True, timeout=600)
+    adapted along them, with the basis parameters given. The script runs outside the
+    repository."""
+    def run(*args):
+        done = subprocess.run([sys.executable, str(root / 'runs' / 'atlas' / 'atlas.py'), *SMALL,
+                               *args, '--np', '1'], cwd=tmp_path, env=child_env,
+                              capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, done.stderr[-2000:]
         return done.stdout
 
-    from pfmembrane.studies.atlas import branch_path, load
-    one_dir, two_dir, _ = on_groups('pfmembrane.studies.atlas', *SMALL)
+    one_dir, two_dir, _ = on_groups('runs/atlas/atlas.py', *SMALL)
     one, two = _numbers(one_dir), _numbers(two_dir)
     assert len(one) == 2 and all(len(b) >= 4 for b in one)
     _same(one, two)
     for name in ('branches.md', 'diagram.md', 'energy.png', 'diagram.png'):
         assert (two_dir / name).stat().st_size > 0
-    assert atlas('--out', str(one_dir)).count('(reused)') == 2
+    assert run('--out', str(one_dir)).count('(reused)') == 2
     _same(_numbers(one_dir), one, rtol=0.0)
     # the same branches at a smaller eps, each on its coarse branch's nodes adapted by CVT
-    adapted = atlas('--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir), '--steps', '2',
-                    '--gamma', '0.7', '--floor', '0.3', '--band', '0.1',
-                    '--out', str(one_dir / 'adapted'))
+    adapted = run('--eps', '0.05', '--adapt', '10', '--coarse', str(one_dir), '--steps', '2',
+                  '--gamma', '0.7', '--floor', '0.3', '--band', '0.1',
+                  '--out', str(one_dir / 'adapted'))
     assert adapted.count('adapt: CVT f=10 band=0.1 of the result and ') == 2
     with open(one_dir / 'atlas.json') as f, open(one_dir / 'adapted' / 'atlas.json') as g:
         coarse, fine = json.load(f)['branches'], json.load(g)['branches']
@@ -202,7 +250,7 @@ def test_two_groups_of_one_rank_give_the_one_rank_atlas(on_groups, child_env, ro
         assert b['nodes'] == c['nodes'] and b['box'] == c['box'] and b['eps_min'] < 0.05
         assert (c['eps'], b['eps']) == (0.06, 0.05) and (c['gamma'], b['gamma']) == (0.8, 0.7)
         assert (c['spacing_floor'], b['spacing_floor']) == (0.0, 0.3)
-        solved = load(branch_path(one_dir / 'adapted', b['family'], b['c0']))
-        assert {s[2]['spacing_floor'] for s in solved['shapes']} == {0.3}  # the grids' own
-        assert solved['shapes'][0][2]['adapt_band'] == 0.1
+        solved = atlas.load(atlas.branch_path(one_dir / 'adapted', b['family'], b['c0']))
+        assert {s.attrs['spacing_floor'] for s in solved['shapes']} == {0.3}  # the grids' own
+        assert solved['shapes'][0].attrs['adapt_band'] == 0.1
         assert len(b['points']) == 3 and all(p['converged'] for p in b['points'])

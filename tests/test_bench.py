@@ -6,14 +6,18 @@ import math
 import numpy as np
 import pytest
 
-from pfmembrane.studies import bench
+from scripts import load
+from pfmembrane import report
+
+bench = load('runs/bench/bench.py')
 
 
 @pytest.mark.slow
 def test_basis_reports_a_plausible_grid(tmp_path, mpi_env, md_tables):
     bench.main(['basis', '--nodes', '600', '--np', '1', '--out', str(tmp_path)])
     text = (tmp_path / 'basis.md').read_text()
-    assert any(line.startswith('Machine: ') and 'cores' in line for line in text.splitlines())
+    assert text.startswith('# Basis set-up\n\nMeasured at commit ')
+    assert ' cores (' in text.splitlines()[2]
     r, = json.loads((tmp_path / 'basis.json').read_text())['results']
     assert r['nodes'] == 600 and r['ranks'] == 1
     assert r['free_nodes'] < r['nodes']
@@ -127,7 +131,7 @@ def test_report_and_figure_from_records(tmp_path, md_tables):
                    [('a', 10, 0.05, 0.004), ('b', 30, 0.03, 0.001), ('c', 20, 0.04, 0.01)],
                    ('discocyte', 'dumbbell'))]
     missing = [(bench.configurations(str(tmp_path))[-1], 'restart checkpoint missing')]
-    text = bench.solve_markdown(records, missing, bench.machine(), quick=False)
+    text = bench.solve_markdown(records, missing, report.provenance(), quick=False)
     assert '## Recommendation' in text
     assert f"`{missing[0][0].label}`: restart checkpoint missing" in text
     tables = md_tables(text)

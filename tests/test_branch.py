@@ -1,5 +1,5 @@
-"""The continuation along a branch (`pfmembrane.studies.branch`, real mpiexec runs) and the
-figures of existing checkpoints (`pfmembrane.studies.figures`)."""
+"""The continuation along a branch (`runs/branches/branch.py`, real mpiexec runs) and the
+figures of existing checkpoints (`runs/figures/figures.py`)."""
 import math
 
 import h5py
@@ -10,12 +10,14 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pfmembrane.studies import branch
+from scripts import load
 from pfmembrane.io import checkpoint
-from pfmembrane.studies import figures
 from pfmembrane.kernels import nodes
 from pfmembrane.analysis import sizing  # noqa: E402
 from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi  # noqa: E402
+
+branch = load('runs/branches/branch.py')
+figures = load('runs/figures/figures.py')
 
 # Two volumes of the oblate branch on a small grid: a few seconds of solves each.
 SMALL = ['--branch', 'oblate', '--from', '0.95', '--to', '0.9', '--step', '0.05',
@@ -23,10 +25,10 @@ SMALL = ['--branch', 'oblate', '--from', '0.95', '--to', '0.9', '--step', '0.05'
 
 
 @pytest.fixture
-def run_branch(python):
-    """`python -m pfmembrane.studies.branch ARGS...`, in the repository."""
+def run_branch(python, tmp_path_factory):
+    """`python runs/branches/branch.py ARGS...`, from outside the repository."""
     def run(*args):
-        return python('-m', 'pfmembrane.studies.branch', *args)
+        return python(branch.__file__, *args, cwd=tmp_path_factory.getbasetemp())
     return run
 
 
@@ -118,4 +120,4 @@ def test_figures_skip_what_is_missing(tmp_path, capsys):
     index = (out / 'index.md').read_text()
     assert '[discocyte/O1_eps0.06_nodes.png]' in index
     assert 'adapt/dumbbell' in index and 'not an HDF5 file' in index
-    assert 'pfmembrane.studies.figures' in capsys.readouterr().err
+    assert 'runs/figures/figures.py' in capsys.readouterr().err

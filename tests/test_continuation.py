@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pfmembrane as pf
-from pfmembrane.studies import atlas
+from pfmembrane.branching import asymmetric
 
 pytestmark = pytest.mark.slow
 
@@ -160,7 +160,7 @@ def test_the_prolate_bifurcates_to_pears_and_a_switch_follows_them():
     assert abs(route[-1].attrs['critical_eigenvalue']) < 1e-3
     asymmetry = [abs(_up_down_asymmetry(p)) for p in pears]
     assert 0.02 < asymmetry[0] < asymmetry[1] < asymmetry[2]
-    assert not atlas.asymmetric(route[-1]) and all(atlas.asymmetric(p) for p in pears)
+    assert not asymmetric(route[-1]) and all(asymmetric(p) for p in pears)
     c0 = [p.attrs['c0'] for p in pears]
     assert c0[0] > c0[1] > c0[2]
     assert all(p.attrs['index_0'] == 1 for p in pears)

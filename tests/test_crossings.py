@@ -1,4 +1,4 @@
-"""The c0 = 0 energy crossings (pfmembrane.studies.crossings): the sharp roots, the
+"""The c0 = 0 energy crossings (runs/crossings/crossings.py): the sharp roots, the
 spline root of sampled differences, the notes page, and a short phase-field series."""
 import math
 import sys
@@ -7,7 +7,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pfmembrane.studies import crossings
+from scripts import load
+
+crossings = load('runs/crossings/crossings.py')
 
 # Converged sharp crossings (runs/crossings/notes.md: n = 8 ... 32 and 128 ... 256 agree
 # to 1e-6).

@@ -1,11 +1,20 @@
-"""The stability study driver (`pfmembrane.studies.extremes`): two cheap cases through real mpiexec
+"""The stability study driver (`runs/extremes/extremes.py`): two cheap cases through real mpiexec
 runs, and the verdicts and table cells of synthetic rows."""
 import json
 import math
 
 import pytest
 
-from pfmembrane.studies import extremes
+from scripts import load
+
+extremes = load('runs/extremes/extremes.py')
+
+
+@pytest.fixture
+def elsewhere(mpi_env, tmp_path, monkeypatch):
+    """mpi_env, with a working directory outside the repository: the study finds its
+    options files from its own path."""
+    monkeypatch.chdir(tmp_path)
 
 
 def table_rows(path):
@@ -19,13 +28,16 @@ def table_rows(path):
 
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_refused_and_tiny_cases(tmp_path, in_root):
+def test_refused_and_tiny_cases(tmp_path, elsewhere):
     # eps0.04: below the 3000-node grid's eps_min, refused after the grid is built;
     # box-tight: 936 nodes, a few seconds of solves, the membrane against the box.
     status = extremes.main(['--out', str(tmp_path), '--only', 'eps0.04,box-tight'])
     assert status == 0
     rows = table_rows(tmp_path / 'extremes.md')
     assert list(rows) == ['eps0.04', 'box-tight']
+    title, _, provenance = (tmp_path / 'extremes.md').read_text().splitlines()[:3]
+    assert title == f"# {extremes.TITLE}" and provenance.startswith('Measured at commit')
+    assert 'runs/extremes/extremes.py --out' in provenance
 
     refused = rows['eps0.04']
     assert refused['exit'] == '2' and refused['expected'] == 'refused: yes'
@@ -56,7 +68,7 @@ def test_refused_and_tiny_cases(tmp_path, in_root):
 
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_a_run_past_its_time_limit_is_stopped_and_reported(tmp_path, in_root):
+def test_a_run_past_its_time_limit_is_stopped_and_reported(tmp_path, elsewhere):
     status = extremes.main(['--out', str(tmp_path), '--only', 'box-tight', '--timeout', '1'])
     assert status == 1   # box-dependent expected, a failure found
     row = table_rows(tmp_path / 'extremes.md')['box-tight']

@@ -296,7 +296,8 @@ def test_a_failed_level_set_leaves_the_run_its_checkpoint_attributes(sphere, mon
 
 
 def test_lobe_of_two_touching_spheres_and_of_a_necked_pair():
-    from pfmembrane.studies.limits import lobe
+    from scripts import load
+    lobe = load('runs/limits/limits.py').lobe
     a, zc, t = 0.28, 1.0, np.linspace(0.0, np.pi, 400)
     # split: the upper sphere's meridian, axis to axis, its mirror image below
     upper = np.column_stack([a * np.sin(t), zc + 0.01 + a * (1 - np.cos(t))])
@@ -316,7 +317,8 @@ def test_lobe_of_two_touching_spheres_and_of_a_necked_pair():
 def test_budding_is_reached_by_continuation_in_c0_and_reused(tmp_path):
     import sys
     import pfmembrane as pf
-    from pfmembrane.studies import limits
+    from scripts import load
+    limits = load('runs/limits/limits.py')
     pf.api.petsc(sys.argv[:1])
     # The first row of runs/limits/notes.md's budding table (eps 0.04 on the spacing of 6124
     # nodes: 1030 in the half box), some 6 s serial. The README's 4.3% is its last row,
@@ -344,11 +346,13 @@ def test_at_the_split_volume_two_spheres_stay_apart_near_r_over_sqrt2(tmp_path):
     0.02 (0.00955), the volume at `split_volume`; read back."""
     import sys
     import pfmembrane as pf
-    from pfmembrane.studies import limits
+    from pfmembrane.analysis.spheres import split_volume
+    from scripts import load
+    limits = load('runs/limits/limits.py')
     pf.api.petsc(sys.argv[:1])
     ck = limits.split(0.04, 4000, str(tmp_path))
     a = ck.attrs
-    assert a['reduced_volume'] == pytest.approx(limits.split_volume(0.04)[0], rel=1e-12)
+    assert a['reduced_volume'] == pytest.approx(split_volume(0.04, limits.RADIUS)[0], rel=1e-12)
     label, _, (half, width, neck) = limits.measure(ck.unfolded())
     assert label == '2 spheres' and neck == 0.0
     assert half == pytest.approx(0.4 / np.sqrt(2), rel=0.01)

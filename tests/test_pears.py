@@ -1,9 +1,11 @@
-"""The pears study's extrapolation of the pitchfork in eps (no PETSc)."""
+"""The pears study's (runs/pears/pears.py) extrapolation of the pitchfork in eps (no PETSc)."""
 import math
 
 import pytest
 
-from pfmembrane.studies import pears
+from scripts import load
+
+pears = load('runs/pears/pears.py')
 
 
 def row(eps, d, adapted=0):

@@ -1,13 +1,15 @@
 """The adaptive-sequence driver: steps run in order and restart from each other,
 converged steps are reused, a step whose start failed is skipped, and the table
 compares each checkpoint with the paper's column for its grid."""
-import h5py
+import numpy as np
 import pytest
 
+from scripts import load
 from pfmembrane.io import checkpoint
 from pfmembrane import series as launch
-from pfmembrane.studies import sequence
 from pfmembrane.paper import SHARP, SHARP_ERROR
+
+sequence = load('runs/adapt/sequence.py')
 
 SMALL = '-pf_nodes 1000\n-pf_box 0.8,1.0\n-pf_eps 0.06\n'
 
@@ -87,13 +89,15 @@ def test_a_half_box_adaptive_sequence_in_process_equals_one_run_per_step(tmp_pat
 
 
 def fake_checkpoint(path, n_nodes, symmetric, eps=0.01, energy=9.18):
-    """Attributes a table row reads, of an oblate run."""
-    with h5py.File(path, 'w') as f:
-        f.attrs.update(branch='oblate', eps=eps, energy=energy, n_nodes=n_nodes,
-                       symmetric=int(symmetric), gamma=0.5, eps_min=0.004, max_phi=1.0,
-                       stage1_iterations=3, stage2_iterations=2, converged=1, time_setup=1.0,
-                       time_stage1=2.0, time_stage2=1.0, peak_rss_mb=100.0, wall_time=4.0,
-                       n_procs=2)
+    """A checkpoint of an oblate run with the attributes a table row reads (and those
+    every checkpoint has), on three nodes."""
+    attrs = dict(branch='oblate', eps=eps, energy=energy, n_nodes=n_nodes,
+                 symmetric=int(symmetric), gamma=0.5, eps_min=0.004, max_phi=1.0,
+                 stage1_iterations=3, stage2_iterations=2, converged=1, time_setup=1.0,
+                 time_stage1=2.0, time_stage2=1.0, peak_rss_mb=100.0, wall_time=4.0,
+                 n_procs=2, area=2.0, volume=0.2, moment=0.0, k=1.0, c0=0.0, nu_area=1.0,
+                 nu_volume=-1.0, box=(1.5, 2.0))
+    checkpoint.write(path, np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), -np.ones(3), attrs)
 
 
 @pytest.mark.parametrize('n_nodes, symmetric, paper', [(12262, False, 12271),

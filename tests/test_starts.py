@@ -212,10 +212,10 @@ def test_tanh_sphere_area_and_volume_are_the_model_functionals(eps):
 
 def test_at_the_budding_limit_two_tanh_spheres_hold_too_much_volume():
     """With the phase-field area 4 pi R^2, two tanh spheres enclose the least volume when
-    equal (`studies.limits.split_volume`), and that is above v = 1 / sqrt 2 by
+    equal (`analysis.spheres.split_volume`), and that is above v = 1 / sqrt 2 by
     (pi^2 / 2 + 3) eps^2 / R^2: the phase field cannot split at the sharp budding limit."""
     from scipy.optimize import brentq
-    from pfmembrane.studies.limits import split_volume
+    from pfmembrane.analysis.spheres import split_volume
     eps, A0 = 0.02, 4 * math.pi * R ** 2
     v, rho = split_volume(eps, R)
     assert v * math.sqrt(2) - 1 == pytest.approx((math.pi ** 2 / 2 + 3) * eps ** 2 / R ** 2,

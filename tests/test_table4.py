@@ -5,9 +5,11 @@ import re
 
 import h5py
 
-from pfmembrane.studies import table4
+from scripts import load
 from pfmembrane.paper import SHARP, SHARP_ERROR
 from test_sequence import fake_checkpoint
+
+table4 = load('runs/adapt/table4.py')
 
 
 def energy_of(error):

@@ -31,10 +31,40 @@ from pfmembrane.io import checkpoint
 from pfmembrane.analysis import levelset
 from pfmembrane.kernels.nodes import nodal_spacing
 
-__all__ = ["FIGURES", "triangulation",
+__all__ = ["FIGURES", "readable", "triangulation",
            "plot_field", "plot_section", "plot_3d", "plot_spacing", "main"]
 
 FIGURES = ("field", "nodes", "section", "3d", "spacing")
+
+
+def readable(paths, unfold=True):
+    """The checkpoints of `paths` that can be read, and why the others cannot.
+
+    Not collective.  For scripts that draw what exists and skip the rest
+    with a note.
+
+    Parameters
+    ----------
+    paths : iterable of str
+    unfold : bool
+        Unfold a half-box checkpoint to the full box (what the figures show).
+
+    Returns
+    -------
+    (dict, dict)
+        {path: Checkpoint} of the readable ones, in the order of `paths`, and
+        {path: message} of the others (`CheckpointError`: missing, not HDF5,
+        truncated, of another schema ...).
+    """
+    found, errors = {}, {}
+    for path in paths:
+        try:
+            ckpt = checkpoint.read(path)
+        except checkpoint.CheckpointError as exc:
+            errors[path] = str(exc)
+            continue
+        found[path] = ckpt.unfolded() if unfold else ckpt
+    return found, errors
 
 
 def triangulation(ckpt):

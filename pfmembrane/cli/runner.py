@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 
 import pfmembrane as pf
-from pfmembrane.io import options
+from pfmembrane.io import checkpoint, options
 from pfmembrane.starts import check_fits
 
 
@@ -118,6 +118,25 @@ def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, star
         stage.pop()
     cache.results[os.path.abspath(output)] = res
     return res, output
+
+
+# Invalid input of an options file or line (the application's exit status 2): raised
+# by `run_files` before any checkpoint is written. A checkpoint that cannot be read (by
+# `pf.read`, or as a run's restart) raises CheckpointError, also exit status 2.
+UsageError = options.UsageError
+CheckpointError = checkpoint.CheckpointError
+
+
+def run_files(*paths, args=(), comm=None, print_fn=None, cache=None, start=None):
+    """`execute` the run of the options files `paths` (later ones override earlier
+    ones) with the command-line `args` after them, passing their solver options
+    (`solver_options`) to the solve; `comm` defaults to PETSc's COMM_WORLD, `print_fn`
+    to its Sys.Print. Collective. Returns (result, checkpoint path); raises
+    `UsageError` for invalid input."""
+    PETSc = pf.petsc()
+    table = options.Table.from_files(*paths, args=args)
+    return execute(options.read(table), comm or PETSc.COMM_WORLD, print_fn or PETSc.Sys.Print,
+                   solver_options(table), prefix=None, cache=cache, start=start)
 
 
 def solved(scene_file, args, path, cache, print_fn=None):

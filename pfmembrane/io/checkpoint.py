@@ -12,6 +12,7 @@ Files are replaced atomically: a process killed at any moment leaves at the
 target path either the previous complete file or the new complete one.
 """
 
+import json
 import os
 import secrets
 import shutil
@@ -25,7 +26,8 @@ import scipy.spatial
 from pfmembrane.kernels.nodes import unfold
 
 __all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
-           "read", "write_xdmf", "basis"]
+           "read", "write_xdmf", "basis", "BRANCH_SCHEMA", "BRANCH_VERSION",
+           "write_branch", "read_branch"]
 
 SCHEMA = "pfmembrane-checkpoint"
 VERSION = 1
@@ -449,3 +451,137 @@ def _data_item(parent, reference, dimensions, number_type):
     item = ET.SubElement(parent, "DataItem", Dimensions=dimensions,
                          NumberType=number_type, Precision="8", Format="HDF")
     item.text = reference
+
+
+# Branch files: the states of a continuation in one file.
+#
+# Root attributes ``schema`` = ``"pfmembrane-branch"``, ``version`` = 1, ``count``
+# (the number of points) and ``attrs`` (the branch's own description, JSON); a group
+# ``points/<i>`` per point, in order, with the datasets ``nodes`` and ``phi`` and the
+# point's attributes (those of a checkpoint, not validated). A point on the same nodes
+# as the point before holds ``nodes`` as a soft link to that point's dataset.
+# Files written before the schema (an attribute ``branch``, the description with
+# the table rows as ``points``; ``scene``, the first point's attributes; ``nodes``
+# once; ``phi`` one row per point) are read too.
+
+BRANCH_SCHEMA = "pfmembrane-branch"
+BRANCH_VERSION = 1
+
+
+def write_branch(path, points, attrs=None, comm=None):
+    """Write the points of a branch, and `attrs` describing it, to one file
+    atomically (the layout above).
+
+    Collective like `write`: rank 0's arguments are written, and every rank
+    returns or raises the same `CheckpointError` together.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to create or replace (its directory must exist).
+    points : sequence of Checkpoint or (nodes, phi, attrs)
+        The states, in order; each point's attributes are scalars, strings
+        or small arrays, as a checkpoint's.
+    attrs : dict, optional
+        The branch's own description: anything JSON can write (NumPy
+        scalars and arrays as numbers and lists).
+    comm : mpi4py.MPI.Comm, optional
+        Communicator; None for a serial call.
+    """
+    path = os.fspath(path)
+
+    def fill(tmp):
+        with h5py.File(tmp, "x") as h5:
+            h5.attrs["schema"] = BRANCH_SCHEMA
+            h5.attrs["version"] = BRANCH_VERSION
+            h5.attrs["count"] = len(points)
+            h5.attrs["attrs"] = json.dumps(attrs or {}, default=_json_value)
+            before = None
+            for i, point in enumerate(points):
+                if isinstance(point, Checkpoint):
+                    point = (point.nodes, point.phi, point.attrs)
+                nodes, phi, point_attrs = point
+                nodes = np.asarray(nodes, dtype=np.float64)
+                phi = np.asarray(phi, dtype=np.float64)
+                _check_arrays(nodes, phi)
+                group = h5.create_group(f"points/{i}")
+                if before is not None and np.array_equal(nodes, before[1]):
+                    group["nodes"] = h5py.SoftLink(before[0])
+                else:
+                    group.create_dataset("nodes", data=nodes)
+                    before = (group["nodes"].name, nodes)
+                group.create_dataset("phi", data=phi)
+                for key, value in point_attrs.items():
+                    try:
+                        group.attrs[key] = value
+                    except TypeError as exc:
+                        raise CheckpointError(f"attribute {key!r} of point {i} of "
+                                              f"type {type(value).__name__} cannot be "
+                                              f"stored in HDF5") from exc
+
+    _on_root(comm, lambda: _replace_atomically(path, fill),
+             f"cannot write branch {path}")
+
+
+def read_branch(path, comm=None):
+    """Read a branch file: ``(points, attrs)``, the points as `Checkpoint`s
+    in order and the branch's description.
+
+    Collective like `read`.  Refuses (`CheckpointError`) a file of another
+    schema or of a version this code does not know; reads the layout
+    written before the schema (see above), whose points all carry the first
+    point's attributes but for their ``reduced_volume``.
+    """
+    path = os.fspath(path)
+    return _on_root(comm, lambda: _load_branch(path), f"cannot read branch {path}")
+
+
+def _json_value(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serializable")
+
+
+def _load_branch(path):
+    if not os.path.isfile(path):
+        raise CheckpointError("no such file")
+    if not h5py.is_hdf5(path):
+        raise CheckpointError("not an HDF5 file")
+    try:
+        with h5py.File(path, "r") as h5:
+            head = {key: _python_value(value) for key, value in h5.attrs.items()}
+            if "schema" not in head and {"branch", "scene"} <= set(head):
+                return _old_branch(h5, head)
+            if head.get("schema") != BRANCH_SCHEMA:
+                raise CheckpointError(f"schema {head.get('schema')!r}, not a "
+                                      f"{BRANCH_SCHEMA} file")
+            if head.get("version") != BRANCH_VERSION:
+                raise CheckpointError(f"{BRANCH_SCHEMA} version "
+                                      f"{head.get('version')!r} unknown: this "
+                                      f"pfmembrane reads version {BRANCH_VERSION}")
+            points, shared = [], {}
+            for i in range(int(head["count"])):
+                group = h5[f"points/{i}"]
+                link = group.get("nodes", getlink=True)
+                name = link.path if isinstance(link, h5py.SoftLink) else group["nodes"].name
+                if name not in shared:
+                    shared[name] = np.asarray(h5[name][()], dtype=np.float64)
+                attrs = {key: _python_value(value) for key, value in group.attrs.items()}
+                points.append(Checkpoint(shared[name], np.asarray(group["phi"][()],
+                                                                  dtype=np.float64), attrs))
+            return points, json.loads(head["attrs"])
+    except (OSError, KeyError) as exc:
+        raise CheckpointError(f"truncated or corrupt branch file "
+                              f"({_one_line(exc)})") from exc
+
+
+def _old_branch(h5, head):
+    """A branch file of the layout before the schema."""
+    about, scene = json.loads(head["branch"]), json.loads(head["scene"])
+    nodes = np.asarray(h5["nodes"][()], dtype=np.float64)
+    points = [Checkpoint(nodes, np.asarray(phi, dtype=np.float64),
+                         dict(scene, reduced_volume=p["v"]))
+              for phi, p in zip(h5["phi"][()], about["points"])]
+    return points, about

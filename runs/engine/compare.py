@@ -22,6 +22,16 @@ def read(path):
     return head, values
 
 
+def provenance_line(head):
+    """The `#` lines of one output as the provenance line of a page (`pfmembrane.report`)."""
+    field = {line.split(' ', 1)[0]: line.split(' ', 1)[1] for line in head}
+    commit = field['code'].split(' at ')[0].replace(' (modified)', '+modified')
+    cores, rest = field['machine'].split(' cores, ', 1)
+    cpu, load = rest.split('; load ')
+    return (f"Measured at commit `{commit}` on {field['date']}, {cores} cores ({cpu}), load "
+            f"{load.split()[0]} at the start; command `{field['command']}`.")
+
+
 def tolerance(name):
     if name.startswith('half '):
         return 1e-9
@@ -47,7 +57,7 @@ def main(before, after):
         ok &= good
         rows.append(f"| {name} | {shown} | {diff:.1e} | {tol:.0e} | {'ok' if good else 'FAIL'} |")
     print("# The engine before and after: the same numbers\n")
-    print(f"Before: {'; '.join(h0)}  \nAfter: {'; '.join(h1)}  \n"
+    print(f"Before: {provenance_line(h0)}  \nAfter: {provenance_line(h1)}  \n"
           f"Table: `python runs/engine/compare.py {before} {after}`\n")
     print("| quantity | before / after (spectra: the range) | relative difference | "
           "tolerance | |\n|---|---|---|---|---|")

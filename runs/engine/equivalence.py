@@ -35,6 +35,7 @@ def half_sequence():
     grid = pf.Grid.uniform(scene, nodes=6124, gamma=0.5)
     res = pf.solve(scene, grid, eps=0.04, checks=False)
     yield 'O1 eps 0.04', res
+    previous = {}
     for f, eps_list in ((10, (0.04, 0.03)), (100, (0.03, 0.025, 0.02)),
                         (1000, (0.025, 0.02, 0.015))):
         start = res if f == 10 else previous[eps_list[0]]

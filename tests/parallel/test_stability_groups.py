@@ -1,4 +1,4 @@
-"""The stability study (pfmembrane.studies.stability) on rank groups: two series on two
+"""The stability study (runs/modes/stability.py) on rank groups: two series on two
 groups of one rank give the tables of one rank following both in turn."""
 import re
 
@@ -20,6 +20,6 @@ def _rows(path):
 
 
 def test_two_groups_of_one_rank_give_the_one_rank_tables(on_groups):
-    one, two, _ = on_groups('pfmembrane.studies.stability', *SMALL)
+    one, two, _ = on_groups('runs/modes/stability.py', *SMALL)
     one, two = _rows(one / 'branches.md'), _rows(two / 'branches.md')
     assert len(one) == 2 and one == two

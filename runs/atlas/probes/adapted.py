@@ -8,12 +8,11 @@ import numpy as np
 import pfmembrane as pf
 from pfmembrane.kernels import maxent
 from pfmembrane.kernels.nodes import nodal_spacings
-from pfmembrane.studies import atlas
+from pfmembrane.result import read_branch
 pf.api.petsc(sys.argv[:1])
 f, gamma = float(sys.argv[1]), float(sys.argv[2])
 q, order = (float(sys.argv[3]) if len(sys.argv) > 3 else 0.0), (int(sys.argv[4]) if len(sys.argv) > 4 else 1)
-coarse = atlas.load(atlas.branch_path('runs/atlas/adapted_stomatocyte/coarse', 'stomatocyte', 0.0))
-along = [pf.Result(*s) for s in coarse['shapes']]
+along, coarse = read_branch('runs/atlas/adapted_stomatocyte/coarse/branches/stomatocyte_c0.h5')
 nodes = pf.adapt(along[0], f, along=along[1:], gamma=gamma).nodes
 maxent.ORDER = order  # the solve's basis only; the CVT's raster and transfer keep max-ent
 sc = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'], branch='stomatocyte', symmetric=False)

@@ -5,11 +5,10 @@ import sys, time
 import numpy as np
 import pfmembrane as pf
 from pfmembrane.kernels.nodes import nodal_spacings
-from pfmembrane.studies import atlas
+from pfmembrane.result import read_branch
 pf.api.petsc(sys.argv[:1])
 f, gamma, w = float(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
-coarse = atlas.load(atlas.branch_path('runs/atlas/adapted_stomatocyte/coarse', 'stomatocyte', 0.0))
-along = [pf.Result(*s) for s in coarse['shapes']]
+along, coarse = read_branch('runs/atlas/adapted_stomatocyte/coarse/branches/stomatocyte_c0.h5')
 nodes = pf.adapt(along[0], f, along=along[1:], band=w, gamma=gamma).nodes
 sc = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'], branch='stomatocyte', symmetric=False)
 grid = pf.Grid(sc, nodes, gamma=gamma)

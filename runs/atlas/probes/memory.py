@@ -8,7 +8,7 @@ import sys
 
 import pfmembrane as pf
 from pfmembrane.parallel import solver
-from pfmembrane.studies import atlas
+from pfmembrane.result import read_branch
 
 PETSc = pf.api.petsc(sys.argv[:1])
 rank = PETSc.COMM_WORLD.getRank()
@@ -38,9 +38,7 @@ if len(sys.argv) > 2:
     grid, eps, options = pf.Grid.uniform(scene, nodes=int(sys.argv[2]), gamma=0.4,
                                          spacing_floor=q), 0.04, {}
 else:
-    coarse = atlas.load(atlas.branch_path('runs/atlas/adapted_stomatocyte/coarse',
-                                          'stomatocyte', 0.0))
-    along = [pf.Result(*s) for s in coarse['shapes']]
+    along, coarse = read_branch('runs/atlas/adapted_stomatocyte/coarse/branches/stomatocyte_c0.h5')
     grid = pf.adapt(along[0], 100, along=along[1:], gamma=0.4, spacing_floor=q)
     scene = pf.Scene(reduced_volume=0.62, c0=0.0, radius=0.4, box=coarse['box'],
                      branch='stomatocyte')

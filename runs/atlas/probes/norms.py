@@ -6,12 +6,10 @@ import sys
 
 import numpy as np
 
-import pfmembrane as pf
 from pfmembrane.analysis import levelset
-from pfmembrane.studies import atlas
+from pfmembrane.result import read_branch
 
-b = atlas.load(sys.argv[1])
-shapes = [pf.Result(*s) for s in b['shapes']]
+shapes, b = read_branch(sys.argv[1])
 box = b['box']
 r, z = np.meshgrid(np.linspace(0, box[0], 120), np.linspace(0, box[1], 210))
 points = np.column_stack([r.ravel(), z.ravel()])

@@ -1,17 +1,21 @@
 """The pear bifurcation of the prolate as eps falls, against the sharp limit:
 
-    python -m pfmembrane.studies.pears [--np 2] [--v 0.8] [--out runs/pears] [--force]
+    python runs/pears/pears.py [--np 2] [--v 0.8] [--out runs/pears] [--force]
+    python runs/pears/pears.py --sharp [--out runs/pears]
+
+From any working directory: --out defaults to runs/pears of the repository.
 
 At each (eps, nodes) of ROWS: the full-box prolate at reduced volume v from its sharp shape
 at the row's c0 = 2 C0 R, followed up in C0 (`pf.continuation`) to its first index change
-without a fold (`atlas.bifurcation`, bracketed twice with steps 4 times shorter), its
+without a fold (`branching.bifurcation`, bracketed twice with steps 4 times shorter), its
 first fold or C_TO, then along the critical mode (`switch`): the pears, for up to STEPS
 points. Where the corrector itself lands on a pear near the pitchfork (its level set
-up-down asymmetric, `atlas.asymmetric`; the subcritical pears turn back in c0, so the step
-reads as a fold) the pears are followed on from that point. Either way until
-their level set has no energy for OTHER_TOPOLOGY points (a bud off) or c0 leaves
-[C_LOW, C_TO]. The sharp pear bifurcation D_pe at the same v is the zero of the sharp
-prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
+up-down asymmetric, `branching.asymmetric`; the subcritical pears turn back in c0, so the
+step reads as a fold) the pears are followed on from that point. Either way until
+their level set has no energy for `branching.OTHER_TOPOLOGY` points (a bud off:
+`branching.topology_lost`) or c0 leaves [C_LOW, C_TO]. The box is the atlas's for its
+pear family at c0 = C_TO (runs/atlas: `BOX`). The sharp pear bifurcation D_pe at the same
+v is the zero of the sharp prolate's least up-down antisymmetric second variation (`sharp.pear_bifurcation`), and
 `--sharp` tabulates that line over v (OUT/sharp.md); the report fits D(eps) = D_0 + C eps^2
 to the uniform rows' bifurcations and compares D_0 with it. Writes OUT/pears_v<v>.md; each eps's
 route is kept in OUT/pears_v<v>_eps<eps>[_adapted][_gamma<gamma>].json and reused unless --force.
@@ -24,20 +28,21 @@ import math
 import os
 import sys
 import time
-import types
 
 import numpy as np
 
-from pfmembrane.io.options import Params
-from pfmembrane import series as launch
-from pfmembrane.studies import atlas
+from pfmembrane import series
+from pfmembrane.report import header, provenance
+from pfmembrane.analysis.sizing import branch_box
+from pfmembrane.paper import SCENE
 
-RADIUS = atlas.RADIUS
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RADIUS = SCENE['radius']
 # (eps, nodes, eps of the uniform grid whose solution the CVT adapts to or None, start c0,
 # max-ent gamma); eps / h about 1.8 on the uniform grids; the later rows start nearer the
 # bifurcation the earlier ones predict. With gamma 0.8 the adapted grids hold the pear mode
 # off (runs/pears/README.md), as the paper's sequences lower gamma on adapted grids.
-G = Params.gamma
+G = 0.8  # `pf.Grid`'s gamma
 ROWS = [(0.04, 6124, None, 2.5, G), (0.03, 12000, None, 2.5, G),
         (0.02, 25000, None, 2.5, G), (0.015, 45000, None, 3.3, G),
         (0.02, 40000, 0.02, 3.3, G), (0.01, 40000, 0.02, 3.5, G),
@@ -45,7 +50,9 @@ ROWS = [(0.04, 6124, None, 2.5, G), (0.03, 12000, None, 2.5, G),
 ADAPT_F = 100.0  # density 1 + f |grad phi_h|
 C_TO, C_LOW = 4.5, 1.5   # reduced c0 = 2 C0 R
 DS, STEPS = 0.1, 40                    # step in reduced c0; points on the pear branch
-OTHER_TOPOLOGY = atlas.OTHER_TOPOLOGY
+# The box: the full-box prolate's sharp shapes at C_TO at 9 volumes from 0.55 to 0.95 (the
+# atlas's range of v) with 5 eps to spare, rounded up to 0.05: the atlas's pear box.
+BOX = dict(volumes=np.linspace(0.55, 0.95, 9), margin=5.0, step=0.05)
 SHARP_V = (0.71, 0.72, 0.73, 0.74, 0.75, 0.8, 0.85, 0.9)
 
 
@@ -83,9 +90,11 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
     the grid keeps the up-down symmetry (the full-box CVT does not: its prolate is up-down
     asymmetric, runs/pears/README.md). Collective."""
     import pfmembrane as pf
+    from pfmembrane.branching import asymmetric, bifurcation, topology_lost
     from pfmembrane.paper import paper_spacing
     t0 = time.perf_counter()
-    box = atlas.box_of('pear', C_TO, eps)
+    box = branch_box('prolate', BOX['volumes'], eps, RADIUS, C_TO / (2 * RADIUS),
+                     margin=BOX['margin'], step=BOX['step'])
     scene = pf.Scene(reduced_volume=v, c0=c_from / (2 * RADIUS), radius=RADIUS, box=box,
                      branch='prolate', symmetric=False)
     if coarse:  # adapted on the half box, unfolded: an up-down symmetric full-box grid
@@ -102,7 +111,7 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, box), gamma=gamma)
         start = pf.solve(scene, grid, eps, options={'pf_start': 'sharp'}, checks=True)
     say(f"-- eps {eps:g}: box {box[0]:g}x{box[1]:g}, {grid!r}")
-    args = types.SimpleNamespace(ds=DS / (2 * RADIUS), steps=STEPS, solver={})
+    ds = DS / (2 * RADIUS)
     folds = []
 
     def note(text):
@@ -110,9 +119,9 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         if text.endswith(' fold'):
             folds.append(text)
 
-    res, reached, jumped = atlas.bifurcation(
-        start, args, note, parameter='c0', ds=args.ds, bound=C_TO / (2 * RADIUS),
-        through_folds=False, left=atlas.asymmetric, scale=2 * RADIUS)
+    res, reached, jumped = bifurcation(
+        start, 'c0', ds, STEPS, C_TO / (2 * RADIUS), say=note, through_folds=False,
+        left=asymmetric, scale=2 * RADIUS)
     out = dict(eps=eps, nodes=grid.n_nodes, adapted=coarse or 0, box=list(box), v=v,
                start=c_from, gamma=gamma,
                reached=2 * RADIUS * reached, bifurcation=math.nan, eigenvalue=math.nan,
@@ -128,18 +137,16 @@ def route(eps, nodes, coarse, c_from, gamma, v, say):
         + (", where its corrector left it for a pear: followed on from there" if jumped else ''))
     if jumped:  # on the pears already, going the way the corrector went
         pears = itertools.chain([res], pf.continuation(
-            res, 'c0', math.copysign(args.ds, res.attrs['dp_ds']), STEPS - 1, checks=True))
+            res, 'c0', math.copysign(ds, res.attrs['dp_ds']), STEPS - 1, checks=True))
     else:
-        pears = pf.continuation(res, 'c0', args.ds, STEPS, switch=True, checks=True)
+        pears = pf.continuation(res, 'c0', ds, STEPS, switch=True, checks=True)
     for p in pears:
         out['eigenvalue'] = float(res.attrs.get('critical_eigenvalue', math.nan))
         s = state(p)
         out['pears'].append(s)
         say(f"   pear c0 {s['c0']:.4f} E {s['E']:.6f} level {s['level']:.6f} index "
             f"{s['index']} {s['topology']} asymmetry {s['asymmetry']:+.4f} its {s['its']}")
-        if not C_LOW <= s['c0'] <= C_TO or (
-                len(out['pears']) >= OTHER_TOPOLOGY and all(
-                    q['topology'] not in atlas.ENERGETIC for q in out['pears'][-OTHER_TOPOLOGY:])):
+        if not C_LOW <= s['c0'] <= C_TO or topology_lost([q['topology'] for q in out['pears']]):
             break
     return dict(out, wall=time.perf_counter() - t0)
 
@@ -170,11 +177,14 @@ def extrapolate(rows):
     return d0, c, float(np.abs(a @ (d0, c) - d).max())
 
 
-def report(rows, v, line):
+def report(rows, v, line, record=None):
+    """The lines of OUT/pears_v<v>.md, under the provenance `record` (`provenance()`,
+    taken at the start of the run; now by default)."""
     d_pe = dict(line).get(v, math.nan)
-    lines = [f"# The pear bifurcation of the prolate at v = {v:g}, in c0 = 2 C0 R", '',
+    lines = [*header(f"The pear bifurcation of the prolate at v = {v:g}, in c0 = 2 C0 R",
+                     record or provenance()),
              f"{rows[0]['ranks']} MPI ranks, {os.cpu_count()} cores. Regenerate: "
-             f"`python -m pfmembrane.studies.pears --v {v:g}` (`pfmembrane/studies/pears.py`).",
+             f"`python runs/pears/pears.py --v {v:g}` (`runs/pears/pears.py`).",
              '', f"Sharp D_pe at v = {v:g}: c0 = {d_pe:.5f} (`sharp.pear_bifurcation`).", '',
              '| eps | nodes | gamma | box | from c0 | prolate to c0 | ends | bifurcation c0 | '
              'vs sharp | critical eigenvalue | pear points | pear fold c0 | wall s |',
@@ -210,12 +220,14 @@ def report(rows, v, line):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    record = provenance()  # before anything is measured
+    ap = argparse.ArgumentParser(prog='python runs/pears/pears.py',
+                                 description=__doc__.splitlines()[0])
     ap.add_argument('--np', type=int, default=2)
     ap.add_argument('--v', type=float, default=0.8)
     ap.add_argument('--eps', type=float, nargs='+',
                     help='the rows of ROWS to run (all); the report has every row on record')
-    ap.add_argument('--out', default='runs/pears')
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'pears'))
     ap.add_argument('--force', action='store_true')
     ap.add_argument('--sharp', action='store_true', help='the sharp D_pe line only')
     args = ap.parse_args(argv)
@@ -223,19 +235,19 @@ def main(argv=None):
     if args.sharp:
         t0 = time.perf_counter()
         line = sharp_line()
-        text = ['# The sharp pear bifurcation D_pe of the prolate', '',
-                'Regenerate: `python -m pfmembrane.studies.pears --sharp` '
+        text = [*header('The sharp pear bifurcation D_pe of the prolate', record),
+                'Regenerate: `python runs/pears/pears.py --sharp` '
                 f"({time.perf_counter() - t0:.1f} s, one process).", '',
                 '| v | c0 = 2 C0 R of D_pe |', '|---|---|'] + \
             [f"| {v:g} | {c:.5f} |" for v, c in line]
         with open(os.path.join(args.out, 'sharp.md'), 'w') as f:
             f.write('\n'.join(text) + '\n')
         print('\n'.join(text))
-        return
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.pears', sys.argv[1:])
+        return 0
+    series.ensure_ranks(args.np, __file__, sys.argv[1:])
     import pfmembrane as pf
     from mpi4py import MPI
-    pf.api.petsc(sys.argv[:1])
+    pf.petsc(sys.argv[:1])
     root = MPI.COMM_WORLD.Get_rank() == 0
 
     def say(text):
@@ -261,11 +273,12 @@ def main(argv=None):
                 json.dump(row, f, indent=1)
         rows.append(row)
     if root:
-        text = report(rows, args.v, sharp_line([args.v]))
+        text = report(rows, args.v, sharp_line([args.v]), record)
         with open(os.path.join(args.out, f"pears_v{args.v:g}.md"), 'w') as f:
             f.write('\n'.join(text) + '\n')
         print('\n'.join(text))
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,14 +1,15 @@
 """Stability of an axisymmetric vesicle against the perturbations psi(r, z) cos(m theta).
 
-    python -m pfmembrane.studies.modes CKPT [--modes M] [--nev K] [--out DIR] [PETSc options]
-    mpiexec -n 2 python -m pfmembrane.studies.modes CKPT ...
+    python runs/modes/modes.py CKPT [--modes M] [--nev K] [--out DIR] [PETSc options]
+    mpiexec -n 2 python runs/modes/modes.py CKPT ...
 
 For m = 0 ... M (default 6) it prints the index of the mode Hessian H_m (its number of
 negative eigenvalues: on the tangent space of the area, volume and moment constraints for
 m = 0, from the inertia of one MUMPS factorization) and its K lowest eigenvalues (default
 3) of H_m psi = lambda M_m psi, M_m the L2 mass of the 3D perturbation, so lambda is the
 second variation of E - nu . (c - c0) per unit squared L2 norm of delta phi.
-Eigenvalues marked `*` belong to modes more than half rigid motion, and the index says
+Eigenvalues marked `*` belong to modes more than half rigid motion
+(`pfmembrane.analysis.spectra.rigid`), and the index says
 how many of its negative ones are such. In m = 1 these are the translation along x and
 the rotation about y: an exactly translation-invariant discretization would give them
 0; here they are ~1e-4 of the first elastic eigenvalue, of either sign, set by the
@@ -20,13 +21,15 @@ for the formulas and the treatment of the axis, `pfmembrane.parallel.stability` 
 solvers. PETSc options reach the eigensolver under `-modes_` (`-modes_eps_tol 1e-10`,
 `-modes_st_mat_mumps_icntl_7 0`).
 
-With --out DIR it writes DIR/<stem>_modes.md (the table) and DIR/<stem>_modes.png: the
+With --out DIR it writes DIR/<stem>_modes.md (the table, headed by the provenance of the
+measurement: `report.provenance`) and DIR/<stem>_modes.png: the
 least stable mode other than rigid motions, as the membrane phi_h = 0 displaced along its
 normal by the mode (delta n = -psi cos(m theta) / |grad phi_h|) and revolved in 3D, and
 psi cos(m theta) on the meridian plane theta = 0 (r > 0) and theta = pi (r < 0).
 
 Collective; the checkpoint is read on every rank and its grid rebuilt (`pf.Grid.of`).
 The time printed is that of the analysis (its set-up, then every m), without the rebuild.
+CKPT and DIR are paths as given, relative to the working directory.
 """
 import argparse
 import os
@@ -35,7 +38,10 @@ import time
 
 import numpy as np
 
-from pfmembrane.kernels.azimuthal import RIGID
+import pfmembrane as pf
+from pfmembrane import report
+from pfmembrane.analysis import spectra as rigid_motions
+from pfmembrane.cli.runner import CheckpointError
 
 
 def analyse(result, grid, modes, nev, say):
@@ -45,13 +51,12 @@ def analyse(result, grid, modes, nev, say):
     Returns the spectra and the least stable mode other than rigid motions:
     its m, nodal chi (every rank) and eigenvalue (None, None, inf if none).
     """
-    import pfmembrane as pf
     spectra = pf.stability(result, modes, nev, grid=grid)
     least = (None, None, np.inf)
     for s in spectra:
         say(row(s))
-        for value, chi, rigid in zip(s.eigenvalues, s.vectors, s.rigid):
-            if not rigid > RIGID and value < least[2]:
+        for value, chi, rigid in zip(s.eigenvalues, s.vectors, rigid_motions.rigid(s)):
+            if not rigid and value < least[2]:
                 least = (s.m, chi, value)
     return spectra, least
 
@@ -59,7 +64,7 @@ def analyse(result, grid, modes, nev, say):
 def row(s):
     """One table row: m, index (and how many of its modes are rigid motions), the
     lowest eigenvalues (rigid ones starred), the seconds."""
-    rigid = s.rigid > RIGID
+    rigid = rigid_motions.rigid(s)
     values = ' '.join(f"{v:.5g}{'*' if r else ''}" for v, r in zip(s.eigenvalues, rigid))
     moving = np.count_nonzero(rigid & (s.eigenvalues < 0))
     index = f"{s.index} ({moving} rigid)" if moving else str(s.index)
@@ -76,10 +81,9 @@ def plot(result, m, chi, value, index, path):
     import matplotlib.pyplot as plt
     import matplotlib.tri as mtri
     from pfmembrane.analysis import levelset
-    from pfmembrane.io.checkpoint import Checkpoint
 
     ckpt = result.checkpoint().unfolded()
-    mode = Checkpoint(result.nodes, chi, result.attrs).unfolded()
+    mode = pf.Result(result.nodes, chi, result.attrs).checkpoint().unfolded()
     field, chi_h = levelset.PhaseField(ckpt), levelset.PhaseField(mode)
     curve = levelset.membrane(ckpt, field=field)
     fig = plt.figure(figsize=(11, 5))
@@ -132,7 +136,7 @@ def plot(result, m, chi, value, index, path):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.modes',
+    ap = argparse.ArgumentParser(prog='python runs/modes/modes.py',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('checkpoint')
     ap.add_argument('--modes', type=int, default=6, help='highest m (default 6)')
@@ -141,18 +145,17 @@ def main(argv=None):
     args, petsc_args = ap.parse_known_args(argv)
     if args.modes < 0 or args.nev < 1:
         ap.error('--modes must be >= 0 and --nev >= 1')
-    import pfmembrane as pf
-    PETSc = pf.api.petsc(sys.argv[:1] + petsc_args)
+    record = report.provenance()   # before the measurement (and before MPI starts)
+    PETSc = pf.petsc(sys.argv[:1] + petsc_args)
     comm = PETSc.COMM_WORLD
 
     def say(text):
         PETSc.Sys.Print(text, comm=comm)
 
-    from pfmembrane.io.checkpoint import CheckpointError
     try:
         result = pf.read(args.checkpoint, comm=comm)
     except CheckpointError as e:   # every rank reads the same verdict
-        say(f"pfmembrane.studies.modes: error: {e}")
+        say(f"modes.py: error: {e}")
         return 2
     if not result.converged:
         say(f"warning: {args.checkpoint} is not converged: its modes are not those of an "
@@ -171,7 +174,9 @@ def main(argv=None):
         stem = os.path.join(args.out, os.path.splitext(os.path.basename(args.checkpoint))[0])
         os.makedirs(args.out, exist_ok=True)
         with open(stem + '_modes.md', 'w') as f:
-            f.write('\n'.join([f"`{args.checkpoint}`: E {result.energy:.8f}, eps {result.eps:g}, "
+            title = f"Azimuthal modes of {os.path.basename(args.checkpoint)}"
+            f.write('\n'.join([*report.header(title, record),
+                               f"`{args.checkpoint}`: E {result.energy:.8f}, eps {result.eps:g}, "
                                f"{grid.n_nodes} nodes; analysis {elapsed:.2f} s on "
                                f"{comm.getSize()} rank(s)", '', *HEADER,
                                *map(row, spectra)]) + '\n')

@@ -1,7 +1,7 @@
 """Run a progressive adaptive sequence (paper Table B.6) and tabulate it
 (Tables 3, 4 and 5).
 
-    python -m pfmembrane.studies.sequence options/adapt/discocyte --scene options/discocyte.opts
+    python runs/adapt/sequence.py options/adapt/discocyte --scene options/discocyte.opts
 
 Each step is an options file of the directory, run in name order as
 `python -m pfmembrane -options_file SCENE -options_file STEP` would run it,
@@ -11,20 +11,38 @@ the step keeps the nodes and the basis, or with `-pf_adapt f` on a new grid.
 Steps whose converged checkpoint exists are not run again (unless --force);
 a step whose start did not converge is not run. `--report` only writes the
 table of the checkpoints that exist.
+
+Runs from any working directory: the directory and the scene are found
+there or else in the repository, whose root is where the steps' own paths
+(-pf_output, -pf_restart) and the default table runs/adapt/<name>.md are.
 """
 import argparse
+import contextlib
 import os
 import sys
 import time
 
-import h5py
 import numpy as np
 
-from pfmembrane import series as launch
-from pfmembrane.cli.runner import converged, option_of, output_of, steps_of
-from pfmembrane.paper import grid_name, paper_grid
-from pfmembrane.report import iterations
-from pfmembrane.paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM
+import pfmembrane as pf
+from pfmembrane import report, series
+from pfmembrane.cli.runner import Cache, UsageError, converged, option_of, output_of, \
+    run_files, steps_of, summary
+from pfmembrane.paper import ADAPTED, FINEST, SHARP, SHARP_ERROR, UNIFORM, grid_name, \
+    paper_grid
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def found(path):
+    """`path` from the working directory if it is there, else from the repository."""
+    return os.path.abspath(path if os.path.exists(path) else os.path.join(ROOT, path))
+
+
+def shown(path):
+    """`path` relative to the repository when it is inside it, for the page."""
+    rel = os.path.relpath(path, ROOT)
+    return path if rel.startswith(os.pardir) else rel
 
 
 def run(steps, scene, force=False):
@@ -34,12 +52,9 @@ def run(steps, scene, force=False):
     A step whose restart checkpoint did not converge is not run; the steps
     that do not depend on it still are.
     """
-    from pfmembrane import api
-    from pfmembrane.cli import runner
-    from pfmembrane.io import options
-    PETSc = api.petsc(sys.argv[:1])
+    PETSc = pf.petsc(sys.argv[:1])
     say = PETSc.Sys.Print
-    cache, walls = runner.Cache(), {}
+    cache, walls = Cache(), {}
     for step in steps:
         out = output_of(step)
         if not force and converged(out):
@@ -52,14 +67,12 @@ def run(steps, scene, force=False):
         say(f"-- {step}")
         t0 = time.perf_counter()
         try:
-            table = options.Table.from_files(scene, step)
-            res, _ = runner.execute(options.read(table), PETSc.COMM_WORLD, say,
-                                  runner.solver_options(table), prefix=None, cache=cache)
-            runner.summary(res, out, say)
+            res, _ = run_files(scene, step, comm=PETSc.COMM_WORLD, print_fn=say, cache=cache)
+            summary(res, out, say)
             status = res.status
             if status:
                 say(f"pfmembrane: {res.message}")
-        except options.UsageError as e:
+        except UsageError as e:
             say(f"pfmembrane: error: {e}")
             status = 2
         walls[step] = time.perf_counter() - t0
@@ -85,8 +98,7 @@ def table(steps, walls):
         path = output_of(step)
         if not os.path.exists(path):
             continue
-        with h5py.File(path, 'r') as f:
-            a = dict(f.attrs)
+        a = pf.read(path).attrs
         branch, eps, energy = str(a['branch']), round(float(a['eps']), 6), float(a['energy'])
         grid = grid_name(path)
         paper = ADAPTED.get((branch, grid), {}).get(eps)
@@ -100,8 +112,8 @@ def table(steps, walls):
             f"| {os.path.basename(step)} | {grid} | {int(a['n_nodes'])} | {float(a['gamma']):g} | {eps:g} | {a['eps_min']:.4f} "
             f"| {energy:.5f} | {_num(paper)} | {_pct(energy, paper)} | {_num(fine)} | {_pct(energy, fine)} "
             f"| {sharp:.2f}% | {'' if table4 is None else f'{table4:.2f}%'} | {a['max_phi']:.4f} "
-            f"| {iterations(a['stage1_iterations'])}+{iterations(a['stage2_iterations'])} | {int(a['converged'])} "
-            f"| {_setup(a)} | {np.nansum([a['time_stage1'], a['time_stage2']]):.1f} "
+            f"| {report.iterations(a['stage1_iterations'])}+{report.iterations(a['stage2_iterations'])} "
+            f"| {int(a['converged'])} | {_setup(a)} | {np.nansum([a['time_stage1'], a['time_stage2']]):.1f} "
             f"| {a['peak_rss_mb']:.0f} | {a['wall_time']:.1f} | {'reused' if wall is None else f'{wall:.1f}'} |")
     return rows, total, sorted(ranks)
 
@@ -127,38 +139,45 @@ def main(argv=None):
     ap.add_argument('--scene', required=True, help='scene options file (options/*.opts)')
     ap.add_argument('--np', type=int, default=2, help='ranks, when not started by mpiexec')
     ap.add_argument('--force', action='store_true', help='rerun steps with a converged checkpoint')
-    ap.add_argument('--out', default=None, help='table path (default runs/adapt/<name>.md)')
+    ap.add_argument('--out', default=None,
+                    help='table path (default runs/adapt/<name>.md of the repository)')
     ap.add_argument('--report', action='store_true',
                     help='only write the table of the checkpoints that exist, run nothing')
     ap.add_argument('--note', default='',
                     help='a sentence for the header: how the machine was shared, reruns')
     args = ap.parse_args(argv)
-    steps = steps_of(args.directory)
+    directory, scene = found(args.directory), found(args.scene)
+    name = os.path.basename(os.path.normpath(directory))
+    out = os.path.abspath(args.out) if args.out else os.path.join(ROOT, 'runs', 'adapt', name + '.md')
     if not args.report:
-        launch.ensure_ranks(args.np, 'pfmembrane.studies.sequence', sys.argv[1:])
-    t0 = time.perf_counter()
-    walls = {} if args.report else run(steps, args.scene, args.force)
-    elapsed = time.perf_counter() - t0
-    if not args.report:
-        from mpi4py import MPI
-        if MPI.COMM_WORLD.Get_rank() != 0:
-            return 0
-    rows, total, ranks = table(steps, walls)
-    name = os.path.basename(os.path.normpath(args.directory))
-    out = args.out or os.path.join('runs', 'adapt', name + '.md')
+        series.ensure_ranks(args.np, __file__, sys.argv[1:])
+    record = report.provenance()
+    # The steps name their checkpoints relative to the repository.
+    with contextlib.chdir(ROOT):
+        steps = steps_of(directory)
+        t0 = time.perf_counter()
+        walls = {} if args.report else run(steps, scene, args.force)
+        elapsed = time.perf_counter() - t0
+        if not args.report:
+            from mpi4py import MPI
+            if MPI.COMM_WORLD.Get_rank() != 0:
+                return 0
+        rows, total, ranks = table(steps, walls)
+        status = 0 if all(converged(output_of(s)) for s in steps) else 1
     os.makedirs(os.path.dirname(out), exist_ok=True)
     with open(out, 'w') as f:
-        f.write(f"Adaptive sequence `{args.directory}` (scene `{args.scene}`), "
+        f.write('\n'.join(report.header(f"Adaptive sequence {name}", record)))
+        f.write(f"\nAdaptive sequence `{shown(directory)}` (scene `{shown(scene)}`), "
                 f"{'/'.join(map(str, ranks))} MPI ranks, {os.cpu_count()} cores. "
                 + (args.note.rstrip('.') + '. ' if args.note else '')
-                + f"Regenerate: `python -m pfmembrane.studies.sequence {args.directory} "
-                f"--scene {args.scene} --force`.\n\n")
+                + f"Regenerate: `python runs/adapt/sequence.py {shown(directory)} "
+                f"--scene {shown(scene)} --force`.\n\n")
         f.write('\n'.join(rows) + '\n\n')
         f.write(f"Sum of the runs' wall times: {total:.1f} s"
                 + ('.\n' if args.report else f" (this invocation: {elapsed:.1f} s).\n"))
     print('\n'.join(rows))
     print(f"sum of run wall times {total:.1f} s -> {out}")
-    return 0 if all(converged(output_of(s)) for s in steps) else 1
+    return status
 
 
 if __name__ == '__main__':

@@ -1,12 +1,13 @@
 """Speed and accuracy benchmarks under runs/bench/.
 
-    python -m pfmembrane.studies.bench basis [--out runs/bench] [--nodes 6124,24597,98388] [--np 1,2]
-    python -m pfmembrane.studies.bench solve [--out runs/bench] [--quick] [--force]
+    python runs/bench/bench.py basis [--out runs/bench] [--nodes 6124,24597,98388] [--np 1,2]
+    python runs/bench/bench.py solve [--out runs/bench] [--quick] [--force]
 
 `basis` times the set-up of uniform grids (node generation, nodal spacing,
-triangulation and partition, max-ent basis) and reports their size, the mean
-support of the basis and the peak memory per rank; each measurement is one
-`mpiexec -n NP python -m pfmembrane.studies.bench basis-one` that prints a JSON line.
+triangulation and partition, max-ent basis: `pfmembrane.analysis.timing.measure_grid`)
+and reports their size, the mean support of the basis and the peak memory per rank;
+each measurement is one `mpiexec -n NP python runs/bench/bench.py basis-one` that
+prints a JSON line.
 
 `solve` runs the configurations of RUNS (one `mpiexec -n NP python -m
 pfmembrane` each, reusing a checkpoint that exists unless --force), compares
@@ -14,24 +15,29 @@ the energies with the paper's finest uniform grid and the sharp-interface
 model, draws the error against the wall time with its Pareto front, and names
 the cheapest configuration reaching 1%, 0.5% and 0.2% of the sharp-interface
 energy.
+
+Runs from any working directory: --out defaults to the repository's runs/bench, and the
+runs are made from the repository's root (the scenes are its options files), paths inside
+it shown relative to it.
 """
 import argparse
-import datetime
+import contextlib
 import json
 import math
 import os
-import resource
 import subprocess
 import sys
-import time
 from dataclasses import dataclass
 
-import h5py
 import numpy as np
 
+import pfmembrane as pf
+from pfmembrane import paper, report
 from pfmembrane import series as launch
-from pfmembrane import paper
+from pfmembrane.analysis.timing import measure_grid
 from pfmembrane.paper import PAPER_BOX
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 # The paper's finest uniform grid (296,344 nodes) per eps, and the sharp interface.
 BRANCH = {'discocyte': 'oblate', 'dumbbell': 'prolate'}
@@ -115,19 +121,6 @@ TIME_ATTRS = ('time_setup', 'time_stage1', 'time_stage2', 'time_assembly', 'time
 NAN = float('nan')
 
 
-def machine():
-    """Core count, load average and date of this measurement."""
-    load = os.getloadavg()
-    return {'cores': os.cpu_count(), 'load_average': [round(v, 2) for v in load],
-            'date': datetime.datetime.now().isoformat(timespec='seconds')}
-
-
-def machine_line(m):
-    return (f"Machine: {m['cores']} cores, load average {m['load_average'][0]:.2f} / "
-            f"{m['load_average'][1]:.2f} / {m['load_average'][2]:.2f} (1/5/15 min) at the start, "
-            f"{m['date']}.")
-
-
 def _fmt(value, spec):
     """`value` formatted with `spec`, or a dash when it was not measured."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
@@ -168,91 +161,6 @@ def _write_json(path, obj):
 
 # ---------------------------------------------------------------- basis set-up
 
-def _peak_rss_mb():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def measure_grid(comm, n, box=BASIS_BOX, gamma=BASIS_GAMMA, cutoff=BASIS_CUTOFF,
-                 degree=BASIS_DEGREE):
-    """Build the Grid of a uniform node set and time its parts.
-
-    Collective. The functions `Grid` is built from are wrapped while it is
-    constructed, so that their time is measured on the calls the application
-    makes and the sizes of the max-ent bases they return can be read without being
-    evaluated twice.
-
-    Parameters
-    ----------
-    comm : petsc4py.PETSc.Comm
-    n : int
-        Requested node count of `nodes.uniform`.
-    box, gamma, cutoff, degree
-        As for `discretization.Discretization`.
-
-    Returns
-    -------
-    dict
-        On every rank: node, free-node and quadrature-point counts, the mean
-        support (basis functions per quadrature point), seconds per part
-        (largest over the ranks) and peak RSS in MB (largest over the ranks).
-    """
-    from mpi4py import MPI
-
-    from pfmembrane.parallel import discretization
-    from pfmembrane.kernels import maxent, nodes as nodesets, quadrature
-
-    mpi = comm.tompi4py()
-    rss_start = _peak_rss_mb()
-    seconds = {'nodes': 0.0, 'spacing': 0.0, 'partition': 0.0, 'basis': 0.0}
-    sizes = []  # (support entries, points) of every basis evaluation
-    watched = [(discretization, 'spacing_and_locality', 'spacing'),
-               (quadrature, 'triangulate', 'partition'),
-               (discretization, 'Layout', 'partition'),
-               (quadrature, 'rule', 'partition'),
-               (maxent, 'local_maxent', 'basis')]
-    originals = [getattr(module, name) for module, name, _ in watched]
-    calls = [0] * len(watched)
-
-    def timed(k, fn, part):
-        def call(*args, **kwargs):
-            t = time.perf_counter()
-            out = fn(*args, **kwargs)
-            seconds[part] += time.perf_counter() - t
-            calls[k] += 1
-            if part == 'basis':
-                sizes.append((int(out.indptr[-1]), len(out.indptr) - 1))
-            return out
-        return call
-
-    mpi.Barrier()
-    t = time.perf_counter()
-    xy = nodesets.uniform(box, n)
-    seconds['nodes'] = time.perf_counter() - t
-    for k, ((module, name, part), fn) in enumerate(zip(watched, originals)):
-        setattr(module, name, timed(k, fn, part))
-    try:
-        t = time.perf_counter()
-        grid = discretization.Discretization(comm, xy, box, gamma=gamma, cutoff=cutoff, degree=degree)
-        total = time.perf_counter() - t
-    finally:
-        for (module, name, _), fn in zip(watched, originals):
-            setattr(module, name, fn)
-    missed = [name for (_, name, _), c in zip(watched, calls) if c == 0]
-    if missed:
-        raise RuntimeError(f"Grid no longer calls {', '.join(missed)}: update measure_grid")
-    # The rest of Grid: axis mirrors, the sparse operators and their ghost layout.
-    seconds['operators'] = total - seconds['spacing'] - seconds['partition'] - seconds['basis']
-    seconds['grid'] = total
-    support, points = (mpi.allreduce(sum(x)) for x in zip(*sizes))
-    peak = _peak_rss_mb()
-    return {'requested': n, 'nodes': len(xy), 'free_nodes': grid.layout.nglobal,
-            'quadrature_points': grid.nquad, 'mean_support': support / points,
-            'ranks': mpi.Get_size(),
-            'seconds': {k: mpi.allreduce(v, op=MPI.MAX) for k, v in seconds.items()},
-            'peak_rss_mb': mpi.allreduce(peak, op=MPI.MAX),
-            'grid_rss_mb': mpi.allreduce(peak - rss_start, op=MPI.MAX)}
-
-
 def basis_one(args):
     """One `measure_grid` on the ranks of this mpiexec; rank 0 prints its JSON line."""
     import petsc4py
@@ -261,9 +169,10 @@ def basis_one(args):
 
     comm = PETSc.COMM_WORLD
     try:
-        result = measure_grid(comm, args.nodes)
+        result = measure_grid(comm, args.nodes, BASIS_BOX, BASIS_GAMMA, BASIS_CUTOFF,
+                              BASIS_DEGREE)
     except BaseException as e:  # noqa: BLE001 - one rank's failure must end all ranks
-        sys.stderr.write(f"pfmembrane.studies.bench: rank {comm.getRank()}: {type(e).__name__}: {e}\n")
+        sys.stderr.write(f"bench.py: rank {comm.getRank()}: {type(e).__name__}: {e}\n")
         sys.stderr.flush()
         comm.tompi4py().Abort(4)
     if comm.getRank() == 0:
@@ -287,19 +196,20 @@ def basis_row(r):
 def basis(args):
     """Measure every (node count, ranks) pair; write basis.md and basis.json."""
     os.makedirs(args.out, exist_ok=True)
-    m = machine()
+    record = report.provenance()
     results = []
     for n in (int(v) for v in args.nodes.split(',')):
         for ranks in (int(v) for v in args.np.split(',')):
-            cmd = launch.command(ranks, 'basis-one', '--nodes', str(n), module='pfmembrane.studies.bench')
+            cmd = launch.command(ranks, 'basis-one', '--nodes', str(n), module=__file__)
             print(' '.join(cmd), flush=True)
             proc = launch.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
             if proc.returncode != 0:
-                raise SystemExit(f"pfmembrane.studies.bench: exit status {proc.returncode} from "
+                raise SystemExit(f"bench.py: exit status {proc.returncode} from "
                                  f"{' '.join(cmd)}")
             results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
             print(basis_row(results[-1]), flush=True)
-    lines = [f"Uniform grids in the {BASIS_BOX[0]:g} x {BASIS_BOX[1]:g} box: max-ent basis with "
+    lines = [*report.header('Basis set-up', record),
+             f"Uniform grids in the {BASIS_BOX[0]:g} x {BASIS_BOX[1]:g} box: max-ent basis with "
              f"gamma {BASIS_GAMMA:g}, cut-off {BASIS_CUTOFF:g} and second derivatives at the "
              f"points of the degree-{BASIS_DEGREE} Gauss rule. Seconds are the largest over the "
              "ranks: node generation, nodal spacing, triangulation + partition (Delaunay "
@@ -307,13 +217,13 @@ def basis(args):
              "basis (values and derivatives), operators (axis mirrors, the sparse B0, Br, Bz, "
              "BL and their ghosts). `mean support` is the mean number of basis functions per "
              "quadrature point (axis mirrors counted); `grid MB` is the growth of the peak RSS "
-             "while the grid was built. Regenerate: `make bench-basis`.", '', machine_line(m), '',
+             "while the grid was built. Regenerate: `make bench-basis`.", '',
              BASIS_COLUMNS, _rule(BASIS_COLUMNS)]
     lines += [basis_row(r) for r in results]
     path = os.path.join(args.out, 'basis.md')
     with open(path, 'w') as f:
         f.write('\n'.join(lines) + '\n')
-    _write_json(os.path.join(args.out, 'basis.json'), {'machine': m, 'results': results})
+    _write_json(os.path.join(args.out, 'basis.json'), {'provenance': record, 'results': results})
     print(path)
 
 
@@ -386,15 +296,15 @@ def record(config, path, costs):
     whether a restarted run's nodes differ from those it started from, i.e.
     whether -pf_adapt took effect.
     """
-    with h5py.File(path, 'r') as f:
-        a, nodes = dict(f.attrs), f['nodes'][:]
+    res = pf.read(path)
+    a, nodes = res.attrs, res.nodes
     scene, eps, energy = config.scene, float(a['eps']), float(a['energy'])
     finest = FINEST[scene].get(round(eps, 6), NAN)
     previous, moved = 0.0, False
     if config.restart:
-        with h5py.File(config.restart, 'r') as f:
-            previous = costs.get(config.restart, float(f.attrs['wall_time']))
-            moved = not np.array_equal(nodes, f['nodes'][:])
+        start = pf.read(config.restart)
+        previous = costs.get(config.restart, float(start.attrs['wall_time']))
+        moved = not np.array_equal(nodes, start.nodes)
     rec = {'name': config.name, 'label': config.label, 'scene': scene,
            'ranks': int(a['n_procs']), 'nodes': int(a.get('n_nodes', -1)), 'eps': eps,
            'gamma': float(a['gamma']), 'cutoff': float(a.get('cutoff', NAN)),
@@ -516,9 +426,11 @@ def solve_row(r):
             + f" | {_fmt(r['peak_rss_mb'], '.0f')} |")
 
 
-def solve_markdown(records, missing, m, quick):
-    """solve.md: one table per scene, the runs without a checkpoint, the recommendation."""
-    lines = ['Phase-field solves. `vs finest`: relative energy error against the paper\'s '
+def solve_markdown(records, missing, record, quick):
+    """solve.md: one table per scene, the runs without a checkpoint, the recommendation;
+    `record` is the `report.provenance` of the measurement."""
+    lines = [*report.header('Speed against accuracy of full solves', record),
+             'Phase-field solves. `vs finest`: relative energy error against the paper\'s '
              'uniform grid of 296,344 nodes at the same eps; `vs sharp`: against the '
              'sharp-interface energy. `wall s` is the checkpoint\'s wall time; `cost s` adds '
              'the runs an adapted grid restarted from. The time split (set-up, stages, '
@@ -527,7 +439,7 @@ def solve_markdown(records, missing, m, quick):
              'reused, so their times date from their own run. `pareto.png` plots |vs finest| '
              'against the cost per scene: crosses did not converge or are under-resolved, the '
              'step line is the Pareto front of the others. Regenerate: `make bench`'
-             f"{QUICK_NOTE if quick else ''}.", '', machine_line(m)]
+             f"{QUICK_NOTE if quick else ''}."]
     for scene in dict.fromkeys([r['scene'] for r in records] + [c.scene for c, _ in missing]):
         lines += ['', f"## {scene.capitalize()}", '', SOLVE_COLUMNS, _rule(SOLVE_COLUMNS)]
         lines += [solve_row(r) for r in records if r['scene'] == scene]
@@ -578,7 +490,7 @@ def plot_pareto(records, path):
 def solve(args):
     """Run the configurations; write solve.md, solve.json and pareto.png."""
     os.makedirs(args.out, exist_ok=True)
-    m = machine()
+    provenance = report.provenance()
     records, missing, costs = [], [], {}
     for config in configurations(args.out, args.quick):
         path, why = run(config, args.out, args.force)
@@ -590,9 +502,9 @@ def solve(args):
         costs[path] = records[-1]['cost']
         print(solve_row(records[-1]), flush=True)
     with open(os.path.join(args.out, 'solve.md'), 'w') as f:
-        f.write(solve_markdown(records, missing, m, args.quick))
+        f.write(solve_markdown(records, missing, provenance, args.quick))
     _write_json(os.path.join(args.out, 'solve.json'), {
-        'machine': m, 'finest': {s: {str(k): v for k, v in e.items()} for s, e in FINEST.items()},
+        'provenance': provenance, 'finest': {s: {str(k): v for k, v in e.items()} for s, e in FINEST.items()},
         'sharp': SHARP, 'runs': records,
         'missing': [{'name': c.name, 'reason': why} for c, why in missing]})
     plot_pareto(records, os.path.join(args.out, 'pareto.png'))
@@ -600,22 +512,36 @@ def solve(args):
     print(os.path.join(args.out, 'solve.md'))
 
 
+def from_root(path):
+    """`path` (from the working directory) relative to the repository's root when it is
+    inside it, else absolute: the runs are made from the root."""
+    path = os.path.abspath(path)
+    rel = os.path.relpath(path, ROOT)
+    return path if rel.startswith(os.pardir) else rel
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest='command', required=True)
     b = sub.add_parser('basis', help='set-up time, size and memory of the max-ent basis')
-    b.add_argument('--out', default='runs/bench')
+    b.add_argument('--out', default=os.path.join(ROOT, 'runs', 'bench'))
     b.add_argument('--nodes', default=','.join(map(str, BASIS_NODES)))
     b.add_argument('--np', default='1,2')
     one = sub.add_parser('basis-one', help='one basis measurement (run under mpiexec)')
     one.add_argument('--nodes', type=int, required=True)
     s = sub.add_parser('solve', help='speed and accuracy of full solves')
-    s.add_argument('--out', default='runs/bench')
+    s.add_argument('--out', default=os.path.join(ROOT, 'runs', 'bench'))
     s.add_argument('--quick', action='store_true', help='three small runs (testing)')
     s.add_argument('--force', action='store_true', help='rerun even if a checkpoint exists')
     args = ap.parse_args(argv)
-    {'basis': basis, 'basis-one': basis_one, 'solve': solve}[args.command](args)
+    if args.command == 'basis-one':
+        basis_one(args)
+        return 0
+    args.out = from_root(args.out)
+    with contextlib.chdir(ROOT):
+        {'basis': basis, 'solve': solve}[args.command](args)
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,6 +1,6 @@
 """Two exact limits as eps falls (runs/limits/notes.md):
 
-    python -m pfmembrane.studies.limits [--np 2] [--out runs/limits] [--only clifford]
+    python runs/limits/limits.py [--np 2] [--out runs/limits] [--only clifford]
 
 the Clifford torus (options/limits/clifford.opts: E -> pi^2 k, both multipliers -> 0,
 radii in ratio 1 : sqrt 2) and symmetric budding (two spheres of radius R / sqrt 2 with H
@@ -11,13 +11,14 @@ would make, from the scene's own start, the rows of one grid on that grid built 
 Budding is reached by continuation in C0 on the half box (`budded`): the two touching
 spheres started from directly do not converge (runs/limits/notes.md). At v = 1 / sqrt 2
 the phase field cannot split: two tanh spheres with the area A0 hold more than V0
-(`split_volume`); at the least volume they do hold, a start of two spheres SPLIT_GAP eps
-apart goes to two spheres of radius near R / sqrt 2, reported after stage 1: apart, they
-feel each other only through terms in exp(-gap / eps), so no Newton iteration settles
-their distance. All in one process on NP ranks (started under mpiexec if need be);
-existing checkpoints are reused. The level set of phi_h is measured by `analysis.levelset`:
-its topology, the torus's own energy (`loop_energy`) and radii, and the upper lobe's half
-height, largest r and neck radius (`lobe`).
+(`analysis.spheres.split_volume`); at the least volume they do hold, a start of two
+spheres SPLIT_GAP eps apart goes to two spheres of radius near R / sqrt 2, reported after
+stage 1: apart, they feel each other only through terms in exp(-gap / eps), so no Newton
+iteration settles their distance. All in one process on NP ranks (started under mpiexec
+if need be); existing checkpoints are reused. From any working directory: the options
+file is the repository's, --out defaults to its runs/limits. The level set of phi_h is
+measured by `analysis.levelset`: its topology, the torus's own energy (`loop_energy`) and
+radii, and the upper lobe's half height, largest r and neck radius (`lobe`).
 """
 import argparse
 import dataclasses
@@ -28,15 +29,20 @@ import time
 
 import numpy as np
 
-from pfmembrane import series as launch
+from pfmembrane import series
+from pfmembrane.analysis.spheres import spheres_phi, split_volume
+from pfmembrane.paper import SCENE
+from pfmembrane.report import header, provenance
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 # (eps, nodes) of each limit, the grid resolving the smallest eps on its box.
 # Budding: nodes are the spacing of that many in the paper box.
 ROWS = {'clifford': [(0.04, 6124), (0.03, 6124), (0.02, 6124), (0.015, 10000)],
         'budding': [(0.04, 6124), (0.03, 12000), (0.02, 22000), (0.015, 40000)],
         'split': [(0.04, 6124), (0.03, 12000), (0.02, 22000)]}
-CLIFFORD = os.path.join('options', 'limits', 'clifford.opts')
-RADIUS = 0.4
+CLIFFORD = os.path.join(ROOT, 'options', 'limits', 'clifford.opts')
+RADIUS = SCENE['radius']
 BUD_V, BUD_C0 = 1 / math.sqrt(2), math.sqrt(2) / RADIUS
 # The budding path: the prolate's sharp shape at C0 = BUD_FROM (one body, a wide neck), in
 # a half box that holds it and the two spheres with 5 eps to spare at eps 0.04.
@@ -85,32 +91,22 @@ def budded(eps, nodes, out):
     return res.checkpoint()
 
 
-def split_volume(eps, radius=RADIUS):
-    """(v, rho): the least reduced volume of two tanh spheres of phase-field area
-    4 pi R^2 (`kernels.initial.tanh_sphere`): two equal ones, of radius rho;
-    v = 1 / sqrt 2 (1 + (pi^2 / 2 + 3) eps^2 / R^2) to second order in eps / R."""
-    from pfmembrane.kernels.initial import tanh_sphere
-    rho = math.sqrt(radius ** 2 / 2 - (math.pi ** 2 - 6) * eps ** 2 / 6)
-    return 2 * tanh_sphere(rho, eps)[1] / (4 / 3 * math.pi * radius ** 3), rho
-
-
 def split(eps, nodes, out):
-    """The checkpoint of one split row: two tanh spheres of radius `split_volume`'s rho,
+    """The checkpoint of one split row: two tanh spheres of radius `split_volume`'s rho
+    (`analysis.spheres`),
     SPLIT_GAP eps apart about the mirror plane, solved at v = `split_volume` and
     C0 = sqrt 2 / R with SPLIT_OPTIONS; read back if it exists. Collective."""
     import pfmembrane as pf
-    from pfmembrane.kernels import initial
     from pfmembrane.paper import paper_spacing
     path = os.path.join(out, f"split_n{nodes}_eps{eps:g}.h5")
     if os.path.exists(path):
         return pf.read(path).checkpoint()
-    v, rho = split_volume(eps)
+    v, rho = split_volume(eps, RADIUS)
     scene = pf.Scene(reduced_volume=v, c0=BUD_C0, radius=RADIUS, box=BUD_BOX,
                      branch='budded', symmetric=True)
     grid = pf.Grid.uniform(scene, nodes=paper_spacing(nodes, BUD_BOX))
     height = rho + 0.5 * SPLIT_GAP * eps
-    phi = initial.profile(initial.spheres_distance(grid.nodes, [rho, rho],
-                                                   np.array([-height, height]), scene.zc), eps)
+    phi = spheres_phi(grid.nodes, [rho, rho], np.array([-height, height]), scene.zc, eps)
     start = pf.Result(grid.nodes, phi, dict(eps=eps, symmetric=1, converged=1,
                                             nu_area=0.0, nu_volume=0.0))
     res = pf.solve(scene, grid, eps, start=start, options=SPLIT_OPTIONS, checks=True)
@@ -139,19 +135,28 @@ def measure(ckpt):
     return shape['label'], tori, lobe(curve, 0.5 * ckpt.box[1])
 
 
+TITLES = {'clifford': 'The Clifford torus as eps falls',
+          'budding': 'Symmetric budding as eps falls',
+          'split': 'The split of two spheres as eps falls',
+          None: 'Exact limits as eps falls: the Clifford torus, symmetric budding, the split'}
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    record = provenance()  # before anything is measured
+    ap = argparse.ArgumentParser(prog='python runs/limits/limits.py',
+                                 description=__doc__.splitlines()[0])
     ap.add_argument('--np', type=int, default=2)
-    ap.add_argument('--out', default='runs/limits')
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'limits'))
     ap.add_argument('--only', choices=sorted(ROWS), help='one limit only')
     args = ap.parse_args(argv)
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.limits', sys.argv[1:])
+    series.ensure_ranks(args.np, __file__, sys.argv[1:])
     from pfmembrane.cli import runner
     from mpi4py import MPI
     cache, root = runner.Cache(), MPI.COMM_WORLD.Get_rank() == 0
     os.makedirs(args.out, exist_ok=True)
-    lines = [f"{MPI.COMM_WORLD.Get_size()} MPI ranks, {os.cpu_count()} cores. Regenerate: "
-             "`make limits` (`python -m pfmembrane.studies.limits`).", '']
+    lines = [*header(TITLES[args.only], record),
+             f"{MPI.COMM_WORLD.Get_size()} MPI ranks, {os.cpu_count()} cores. Regenerate: "
+             "`make limits` (`python runs/limits/limits.py`).", '']
     for name in [args.only] if args.only else ROWS:
         rows = []
         for eps, nodes in ROWS[name]:
@@ -176,7 +181,7 @@ def main(argv=None):
                     f"{centre / tube:.4f} |")
         elif name == 'split':
             target = RADIUS / math.sqrt(2)
-            lines += [f'## The split: two spheres apart at v = 1 / sqrt 2 (1 + (pi^2 / 2 + 3) eps^2 / R^2)',
+            lines += ['## The split: two spheres apart at v = 1 / sqrt 2 (1 + (pi^2 / 2 + 3) eps^2 / R^2)',
                       '', f'C0 = sqrt 2 / R, half box {BUD_BOX[0]:g} x {BUD_BOX[1]:g}, from two tanh '
                       f'spheres {SPLIT_GAP:g} eps apart; stage 1 only (stage-1 relative constraint '
                       f"residual {SPLIT_OPTIONS['pf_stage1_rtol']:g}), so converged is 0.", '',
@@ -215,7 +220,8 @@ def main(argv=None):
             f.write('\n'.join(lines))
         print('\n'.join(lines))
         print(table)
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,11 +1,12 @@
 """The stability study: the method at the edges of its range, and how each run ends.
 
-    python -m pfmembrane.studies.extremes --out runs/extremes [--np 2] [--force] [--only NAME,...]
-                                  [--timeout 1200]
+    python runs/extremes/extremes.py --out runs/extremes [--np 2] [--force] [--only NAME,...]
+                                     [--timeout 1200]
 
 Each case of `CASES` is one `mpiexec -n NP python -m pfmembrane` run: the scene of its branch
-(`scenes.SCENE_FILES`), the grid and eps of `GRID` (about 3000 uniform nodes in the paper's 1.5 x 2
-box, eps = 0.06), then the case's own options, writing OUT/<name>.h5. The cases probe the
+(`pfmembrane.paper.SCENE_FILES`, found from the repository root), the grid and eps of `GRID`
+(about 3000 uniform nodes in the paper's 1.5 x 2 box, eps = 0.06), then the case's own
+options, writing OUT/<name>.h5. The cases probe the
 resolution rule (eps at and below eps_min, with and without -pf_force), the max-ent locality up
 to the Delaunay limit, the reduced volume on both branches and the sphere, the spontaneous
 curvature, boxes too small for the vesicle, and grids graded by a strong CVT adaptation.
@@ -19,8 +20,10 @@ exists and is newer than its parent's; refused runs write no checkpoint and run 
 seconds each). A run still going after --timeout seconds gets SIGTERM, checkpoints
 its last iterate (converged = 0) and counts as failed. Each run's output goes to OUT/<name>.log.
 
-OUT/extremes.md and OUT/extremes.json: one row per case (in the order of `CASES`) with energy,
-iterations, max |phi|, relative area and volume residuals, exit status, the stderr reason of a
+OUT/extremes.md, headed by the provenance of the measurement (`report.provenance`), and
+OUT/extremes.json (OUT: runs/extremes of the repository by default, whatever the working
+directory): one row per case (in the order of `CASES`) with energy, iterations, max |phi|,
+relative area and volume residuals, exit status, the stderr reason of a
 refusal or failure, and a verdict: "converged" (with the flags of `flags` when the result is
 doubtful), "refused: <reason>", "failed: <reason>" or "not run: <reason>". The exit status is 0
 when every selected case ended as its expectation (`EXPECT`) says, 1 otherwise.
@@ -30,6 +33,7 @@ import json
 import math
 import os
 import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -38,13 +42,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from pfmembrane.io import checkpoint
+import pfmembrane as pf
+from pfmembrane import report
 from pfmembrane import series as launch
-from pfmembrane.studies.bench import machine, machine_line
-from pfmembrane.io.checkpoint import CheckpointError
 from pfmembrane.analysis.levelset import BOUNDARY_TOL, PhaseField, boundary_phi, enclosed_volume, membrane
-from pfmembrane.cli.runner import converged
+from pfmembrane.cli.runner import CheckpointError, converged
 from pfmembrane.paper import SCENE_FILES as SCENE
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 # Grid and eps of every case unless its options say otherwise (later options win).
 GRID = ('-pf_nodes', '3000', '-pf_box', '1.5,2', '-pf_eps', '0.06')
@@ -83,7 +88,7 @@ class Case:
     expect : str
         How the run should end, a key of `EXPECT`.
     branch : str
-        'oblate' or 'prolate': the scene (`scenes.SCENE_FILES`).
+        'oblate' or 'prolate': the scene (`pfmembrane.paper.SCENE_FILES`).
     parent : str
         Case whose converged checkpoint this one needs ('' for none); it comes earlier in
         `CASES`.
@@ -196,7 +201,8 @@ def command(case, out, nprocs, parent_attrs=None):
     if case.eps_ratio:
         # repr: exactly the parent's float, so that a ratio of 1 sits on the limit itself.
         options += ['-pf_eps', repr(case.eps_ratio * float(parent_attrs['eps_min']))]
-    return launch.command(nprocs, '-options_file', SCENE[case.branch], *GRID, *options,
+    return launch.command(nprocs, '-options_file', os.path.join(ROOT, SCENE[case.branch]),
+                          *GRID, *options,
                           '-pf_output', checkpoint_path(out, case.name))
 
 
@@ -338,9 +344,10 @@ def level_set_shape(ckpt, field):
 
 
 def read(path):
-    """The checkpoint at `path`, or None when it cannot be read."""
+    """The checkpoint at `path` (`pf.read(path).checkpoint()`), or None when it cannot be
+    read."""
     try:
-        return checkpoint.read(path)
+        return pf.read(path).checkpoint()
     except CheckpointError:
         return None
 
@@ -594,10 +601,14 @@ def study(selected, out, nprocs, timeout, force=False):
     return rows
 
 
-def describe(nprocs, timeout, conditions):
-    """The paragraph above the table."""
-    return (
-        f"Stability study: `python -m pfmembrane.studies.extremes --out OUT --np {nprocs} --force` "
+TITLE = 'Stability study: the method at the edges of its range'
+
+
+def describe(nprocs, timeout, record):
+    """The title, the provenance line of `record` (`report.provenance`) and the
+    paragraph above the table."""
+    return '\n'.join(report.header(TITLE, record)) + '\n' + (
+        f"Stability study: `python runs/extremes/extremes.py --out OUT --np {nprocs} --force` "
         f"(`make extremes`), {nprocs} MPI ranks, one run per case, each limited to "
         f"{timeout:g} s. Unless a case's options say otherwise: the scene of its branch "
         f"(`options/discocyte.opts` or `options/dumbbell.opts`) with `{' '.join(GRID)}`, "
@@ -618,12 +629,15 @@ def describe(nprocs, timeout, conditions):
         "time limit. Verdict flags: under-resolved; box-dependent (phi_h one eps inside the "
         f"box above {-1 + BOUNDARY_TOL:g}, or E more than {100 * BOX_TOL:g}% off the same "
         f"scene in another box); off-branch (phi_h = 0 farther than {OFF_BRANCH:g} R from the "
-        "sharp shape).\n\n" + machine_line(conditions) + '\n')
+        "sharp shape).\n")
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--out', default='runs/extremes', help='directory of checkpoints and tables')
+    ap = argparse.ArgumentParser(prog='python runs/extremes/extremes.py',
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'extremes'),
+                    help='directory of checkpoints and tables (default: runs/extremes of the '
+                         'repository)')
     ap.add_argument('--np', type=int, default=2, help='MPI ranks per run')
     ap.add_argument('--force', action='store_true', help='run the selected cases again')
     ap.add_argument('--only', default=None, help='comma-separated case names (and their parents)')
@@ -634,18 +648,20 @@ def main(argv=None):
     except ValueError as e:
         ap.error(str(e))
     os.makedirs(args.out, exist_ok=True)
-    conditions = machine()
+    # at the start of the measurement; the command as given (this process's by default)
+    record = report.provenance(None if argv is None else ' '.join(
+        ['python', 'runs/extremes/extremes.py', *map(shlex.quote, argv)]))
     t0 = time.perf_counter()
     rows = study(cases, args.out, args.np, args.timeout, args.force)
     elapsed = time.perf_counter() - t0
     lines = table(rows)
     total = sum(row['seconds'] or 0.0 for row in rows)
     with open(os.path.join(args.out, 'extremes.md'), 'w') as f:
-        f.write(describe(args.np, args.timeout, conditions) + '\n' + '\n'.join(lines) + '\n\n'
+        f.write(describe(args.np, args.timeout, record) + '\n' + '\n'.join(lines) + '\n\n'
                 f"Sum of the runs' wall times, mpiexec included: {total:.0f} s (this "
                 f"invocation: {elapsed:.0f} s).\n")
     with open(os.path.join(args.out, 'extremes.json'), 'w') as f:
-        json.dump(dict(machine=conditions, np=args.np, timeout=args.timeout, grid=GRID,
+        json.dump(dict(provenance=record, np=args.np, timeout=args.timeout, grid=GRID,
                        expect=EXPECT, cases=[asdict(c) for c in CASES], rows=rows), f, indent=1)
         f.write('\n')
     print('\n'.join(lines))

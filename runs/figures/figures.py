@@ -1,6 +1,6 @@
 """The figures of the README, regenerated from existing checkpoints.
 
-    python -m pfmembrane.studies.figures [--runs runs] [--out runs/figures] [--dpi 150]
+    python runs/figures/figures.py [--runs runs] [--out runs/figures] [--dpi 150]
 
 For the discocyte and the dumbbell it reads the checkpoints of the adaptive sequence,
 RUNS/adapt/<shape>/<grid>_eps<eps>.h5, and the single run RUNS/<shape>.h5, those that exist,
@@ -13,10 +13,12 @@ and draws with `pfmembrane.analysis.plot` and `pfmembrane.analysis.levelset`:
 - the zero level sets of the same checkpoints against the sharp interface (Figure 8b, by
   `python -m pfmembrane.analysis.levelset`, which also writes its table);
 - the discocyte and the dumbbell revolved about the axis (Figure 5), and the shapes of the
-  branches under RUNS/branches (Figure 6, `python -m pfmembrane.studies.branch`).
+  branches under RUNS/branches (Figure 6, `python runs/branches/branch.py`).
 
 A missing or unreadable checkpoint is skipped with a note, never an error. OUT/index.md lists
-the figures, the checkpoints each one shows, and the notes.
+the figures, the checkpoints each one shows, and the notes. Runs from any working directory:
+RUNS and OUT default to the repository's runs/ and runs/figures/, and paths inside the
+repository are shown relative to its root.
 """
 import argparse
 import contextlib
@@ -30,11 +32,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.path import Path
 
-from pfmembrane.io import checkpoint
+from pfmembrane import report
 from pfmembrane.analysis import levelset, plot
-from pfmembrane.studies.branch import checkpoints as branch_checkpoints
 from pfmembrane.paper import grid_name
 
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BRANCHES = ('oblate', 'prolate')   # the branches of RUNS/branches (runs/branches/branch.py)
 # Shape name and the paper's figure of its adapted grids.
 SHAPES = (('discocyte', '7'), ('dumbbell', '10'))
 ZOOM = 5.0      # half-width of the zoomed section, in units of the largest eps shown
@@ -43,8 +46,9 @@ ZOOM = 5.0      # half-width of the zoomed section, in units of the largest eps 
 class Index:
     """The figures written and the notes on what was skipped, for OUT/index.md."""
 
-    def __init__(self, out):
+    def __init__(self, out, record):
         self.out = out
+        self.record = record   # report.provenance() at the start
         self.rows = []
         self.notes = []
 
@@ -65,12 +69,12 @@ class Index:
     def note(self, text):
         """Record what was skipped and why; also reported on stderr."""
         self.notes.append(text)
-        print(f"pfmembrane.studies.figures: {text}", file=sys.stderr)
+        print(f"runs/figures/figures.py: {text}", file=sys.stderr)
 
     def write(self, runs):
         """Write OUT/index.md; returns its path."""
-        lines = ['# Figures', '',
-                 f"Regenerated from the checkpoints under `{runs}` by `python -m pfmembrane.studies.figures "
+        lines = [*report.header('Figures', self.record),
+                 f"Regenerated from the checkpoints under `{runs}` by `python runs/figures/figures.py "
                  f"--runs {runs} --out {self.out}` (`make figures`).", '',
                  '| figure | paper | checkpoints |', '|---|---|---|']
         lines += [f"| [{name}]({name}) | {paper} | {sources} |" for name, paper, sources in self.rows]
@@ -87,13 +91,26 @@ class Index:
 
 
 def load(paths, index):
-    """{path: Checkpoint} of the readable `paths`; the others are noted."""
+    """{path: Checkpoint} of the readable `paths`, unfolded to the full box; the
+    others are noted."""
+    found, errors = plot.readable(paths)
+    for message in errors.values():
+        index.note(message)
+    return found
+
+
+def branch_checkpoints(directory, index):
+    """The readable checkpoints of every branch under `directory` (`<branch>/v*.h5`,
+    as runs/branches/branch.py writes them): {branch: [(path, Checkpoint)]} in order
+    of v; the unreadable ones are noted."""
     found = {}
-    for path in paths:
-        try:
-            found[path] = checkpoint.read(path).unfolded()
-        except checkpoint.CheckpointError as e:
-            index.note(str(e))
+    for branch in BRANCHES:
+        ckpts, errors = plot.readable(glob.glob(os.path.join(directory, branch, 'v*.h5')),
+                                      unfold=False)
+        for message in errors.values():
+            index.note(message)
+        if ckpts:
+            found[branch] = sorted(ckpts.items(), key=lambda pair: pair[1].attrs['reduced_volume'])
     return found
 
 
@@ -223,11 +240,7 @@ def shapes_figure(chosen, index, dpi):
 
 def branch_figures(directory, index, dpi):
     """The shapes along each branch revolved about the axis (Figure 6)."""
-    try:
-        found = branch_checkpoints(directory)
-    except checkpoint.CheckpointError as e:
-        index.note(str(e))
-        return
+    found = branch_checkpoints(directory, index)
     if not found:
         index.note(f"no branch checkpoints under `{directory}` (`make branches`)")
     for branch, pairs in found.items():
@@ -250,21 +263,37 @@ def branch_figures(directory, index, dpi):
         index.add(os.path.relpath(energy, index.out), '6 (energies)', sources=[directory])
 
 
+def from_root(path):
+    """`path` (from the working directory) relative to the repository's root when it is
+    inside it, else absolute: what the page shows, valid from the root."""
+    path = os.path.abspath(path)
+    rel = os.path.relpath(path, ROOT)
+    return path if rel.startswith(os.pardir) else rel
+
+
 def main(argv=None):
     """Write every figure the existing checkpoints allow; returns 0."""
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.figures',
+    ap = argparse.ArgumentParser(prog='python runs/figures/figures.py',
                                  description=__doc__.splitlines()[0])
-    ap.add_argument('--runs', default='runs', help='directory of the runs (default: runs)')
-    ap.add_argument('--out', default=os.path.join('runs', 'figures'))
+    ap.add_argument('--runs', default=os.path.join(ROOT, 'runs'),
+                    help="directory of the runs (default: the repository's runs)")
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'figures'))
     ap.add_argument('--dpi', type=float, default=150.0)
     args = ap.parse_args(argv)
+    runs, out = from_root(args.runs), from_root(args.out)
+    with contextlib.chdir(ROOT):
+        return draw(runs, out, args.dpi)
+
+
+def draw(runs, out, dpi):
+    """The figures of the checkpoints under `runs` into `out`, and out/index.md."""
     matplotlib.use('Agg')
-    index = Index(args.out)
+    index = Index(out, report.provenance())
     chosen = []
     for shape, number in SHAPES:
-        pattern = os.path.join(args.runs, 'adapt', shape, '*.h5')
+        pattern = os.path.join(runs, 'adapt', shape, '*.h5')
         sequence = load(sorted(glob.glob(pattern)), index)
-        single = os.path.join(args.runs, f"{shape}.h5")
+        single = os.path.join(runs, f"{shape}.h5")
         alone = load([single], index) if os.path.exists(single) else {}
         if not sequence:
             index.note(f"no checkpoints match `{pattern}` (`make adapt-{shape}`): no figures "
@@ -272,21 +301,21 @@ def main(argv=None):
         if not alone:
             index.note(f"no `{single}`")
         field_figures(shape, [(p, sequence[p]) for p in sequence_order(sequence)]
-                      + list(alone.items()), number, index, args.dpi)
+                      + list(alone.items()), number, index, dpi)
         finest = finest_per_grid(sequence, index)
         if sequence:
-            spacing_figure(shape, sequence, index, args.dpi)
+            spacing_figure(shape, sequence, index, dpi)
         if finest:
-            section_figure(shape, finest, sequence, index, args.dpi)
+            section_figure(shape, finest, sequence, index, dpi)
             limit_figure(shape, finest, index)
         # Figure 5 shows the single run, else the finest converged solution of the sequence.
         if alone or finest:
             pick = next(iter(alone), None) or finest[-1]
             chosen.append((shape, pick, {**sequence, **alone}[pick]))
     if chosen:
-        shapes_figure(chosen, index, args.dpi)
-    branch_figures(os.path.join(args.runs, 'branches'), index, args.dpi)
-    index.write(args.runs)
+        shapes_figure(chosen, index, dpi)
+    branch_figures(os.path.join(runs, 'branches'), index, dpi)
+    index.write(runs)
     return 0
 
 

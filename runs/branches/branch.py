@@ -1,27 +1,32 @@
 """Continuation of an equilibrium branch in the reduced volume (paper Figure 6).
 
-    python -m pfmembrane.studies.branch --branch oblate --from 0.95 --to 0.65 --step 0.05 --out runs/branches
+    python runs/branches/branch.py --branch oblate --from 0.95 --to 0.65 --step 0.05 --out runs/branches
         [--np 2] [--eps 0.04] [--nodes 6124] [--box Rb,Zb] [--force] [-- SOLVER OPTIONS]
-    python -m pfmembrane.studies.branch --plot runs/branches
+    python runs/branches/branch.py --plot runs/branches
 
 The first reduced volume is solved from the spheroid initial guess of the branch; every next
 one restarts from the result of the previous one (`-pf_restart PREV.h5 -pf_reduced_volume v
 -pf_stage1 none`: Newton on the bordered system first, both stages should it fail), or, after
 two solved volumes, from the secant through them (`api.predict`), so that the solution follows
 the branch as the vesicle deflates. A step is what `python -m pfmembrane
--options_file options/branch/<branch>.opts ...` would run, writing OUT/<branch>/v<v>.h5, but all
+-options_file options/branch/<branch>.opts ...` would run (`runner.run_files`), writing
+OUT/<branch>/v<v>.h5, but all
 steps run in one process on NP ranks (started under mpiexec if need be), on one grid built once,
 each from the previous result in memory. Options after `--` are added to every run (solver
 options such as `-pf_stage1_rtol 1e-5`: a checkpoint is reused whatever they were). Steps whose converged
 checkpoint of the same scene, grid and start exists are not run again (unless --force); once a
 step runs, the later ones run too. The branch stops at the first failed step. The table goes
-to OUT/<branch>.md.
+to OUT/<branch>.md, headed by the provenance of the measurement (`report.provenance`).
 
 A restart keeps the box of its checkpoint, so one box serves the whole branch: the paper's
-1.5 x 2, enlarged where a shape of the branch needs it (`sizing.required_box`).
+1.5 x 2, enlarged where a shape of the branch needs it (`sizing.required_box`,
+`sizing.default_box`).
 
 `--plot OUT` draws OUT/energy.png: E against v for every branch under OUT, the sharp-interface
 energies as lines, and the zero level sets of the phase fields as a strip of silhouettes.
+
+The scene files are found from the repository root, whatever the working directory; OUT
+defaults to runs/branches there.
 """
 import argparse
 import glob
@@ -33,27 +38,37 @@ import time
 import h5py
 import numpy as np
 
-from pfmembrane.io import checkpoint
+import pfmembrane as pf
+from pfmembrane import report
 from pfmembrane import series as launch
-from pfmembrane.kernels.nodes import nodal_spacing, uniform
-from pfmembrane.io.options import BRANCHES
 from pfmembrane.report import iterations
+from pfmembrane.cli import runner
 from pfmembrane.cli.runner import option_of
-from pfmembrane.analysis.sizing import required_box
+from pfmembrane.analysis.sizing import default_box, required_box, uniform_grid
 from pfmembrane.paper import PAPER_BOX
 
-SCENE = os.path.join('options', 'branch', '{}.opts')
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SCENE = os.path.join('options', 'branch', '{}.opts')   # relative to ROOT
+BRANCHES = ('oblate', 'prolate')   # the branches with a scene file SCENE
+NAME = 'branch.py'   # the prefix of the messages
 
 # The application requires the initial spheroid to fit the box with 3 eps to spare;
 # the same margin keeps phi = -1 on the box edges away from every shape of the branch.
 MARGIN = 3.0
-BOX_STEP = 0.1          # a box that must grow grows to a multiple of this
 SHARP_DV = 0.01         # v spacing of the sharp-interface line of the figure
 
 
+def shown(path):
+    """`path` as a page names it: relative to the repository root when inside it."""
+    path = os.path.abspath(path)
+    inside = os.path.commonpath([path, ROOT]) == ROOT
+    return os.path.relpath(path, ROOT) if inside else path
+
+
 def scene_value(scene, name):
-    """The last value an options file gives to -pf_<name>, as a float."""
-    value = option_of(scene, f'pf_{name}')
+    """The last value the options file `scene` (relative to ROOT) gives to -pf_<name>,
+    as a float."""
+    value = option_of(os.path.join(ROOT, scene), f'pf_{name}')
     if value is None:
         sys.exit(f"{scene}: names no -pf_{name}")
     return float(value)
@@ -76,13 +91,6 @@ def volumes(start, stop, step):
     if not all(0.0 < v <= 1.0 for v in vs):
         raise ValueError("reduced volumes must lie in (0, 1]")
     return vs
-
-
-def default_box(required):
-    """The paper's box, each side grown to a multiple of `BOX_STEP` where
-    `required` exceeds it: the v = 0.8 steps then share the grid of Tables 1, 2."""
-    return tuple(p if q <= p else math.ceil(q / BOX_STEP - 1e-9) * BOX_STEP
-                 for p, q in zip(PAPER_BOX, required))
 
 
 def _attrs(path):
@@ -121,13 +129,10 @@ def run(branch, vs, box, args):
         status), ``message`` (the run's own line on stderr when it failed) and
         ``written`` (whether `path` is a checkpoint of this step).
     """
-    from pfmembrane import api
-    from pfmembrane.cli import runner
-    from pfmembrane.io import options
-    PETSc = api.petsc(sys.argv[:1])
+    PETSc = pf.petsc(sys.argv[:1])
     say = PETSc.Sys.Print
     scene = SCENE.format(branch)
-    n_nodes = len(uniform(box, args.nodes))
+    n_nodes, _ = uniform_grid(box, args.nodes)
     steps, parent, rerun, cache = [], '', args.force, runner.Cache()
     solved = []  # (v, result) of the steps solved here, for the secant predictor
     for v in vs:
@@ -148,17 +153,16 @@ def run(branch, vs, box, args):
             predicted = None
             if len(solved) >= 2 and solved[-1][1].path == parent:
                 (v0, r0), (v1, r1) = solved[-2:]
-                predicted = api.predict(r0, r1, (v - v1) / (v1 - v0))
+                predicted = pf.predict(r0, r1, (v - v1) / (v1 - v0))
             try:
-                table_ = options.Table.from_files(scene, args=line)
-                res, _ = runner.execute(options.read(table_), PETSc.COMM_WORLD, say,
-                                      runner.solver_options(table_), prefix=None, cache=cache,
-                                      start=predicted)
+                res, _ = runner.run_files(os.path.join(ROOT, scene), args=line,
+                                          comm=PETSc.COMM_WORLD, print_fn=say, cache=cache,
+                                          start=predicted)
                 runner.summary(res, path, say)
                 if res.converged:
                     solved.append((v, res))
                 step['status'], step['message'] = res.status, res.message
-            except options.UsageError as e:
+            except runner.UsageError as e:
                 # invalid input writes no checkpoint: a file there is an older one
                 step['status'], step['message'], step['written'] = 2, f"error: {e}", False
             step['wall'] = time.time() - t0
@@ -197,17 +201,19 @@ def table(steps):
     return rows, total
 
 
-def header(branch, vs, box, need, sizes, given, args):
-    """The paragraph above the table: scene, grid, box and how to read the columns."""
-    grid = uniform(box, args.nodes)
+def header(branch, vs, box, need, sizes, given, args, record):
+    """The title, the provenance line of `record` (`report.provenance`) and the
+    paragraph above the table: scene, grid, box and how to read the columns."""
+    n_nodes, spacing = uniform_grid(box, args.nodes)
     rb, zb = box
     why = ('given by --box' if given else
            f"the paper's {PAPER_BOX[0]:g} x {PAPER_BOX[1]:g}"
            + (', grown to hold the branch' if box != PAPER_BOX else ''))
     return (
-        f"# The {branch} branch: continuation in the reduced volume\n\n"
-        f"Scene `{SCENE.format(branch)}`, eps = {args.eps:g}, a uniform grid of {len(grid)} nodes "
-        f"(`-pf_nodes {args.nodes}`, mean nodal spacing {np.mean(nodal_spacing(grid)):.4f}), "
+        '\n'.join(report.header(f"The {branch} branch: continuation in the reduced volume",
+                                record)) + '\n'
+        f"Scene `{SCENE.format(branch)}`, eps = {args.eps:g}, a uniform grid of {n_nodes} nodes "
+        f"(`-pf_nodes {args.nodes}`, mean nodal spacing {spacing:.4f}), "
         f"{args.np} MPI ranks, {os.cpu_count()} cores. v = {vs[0]:g} starts from the {branch} "
         f"spheroid; every next v restarts from the checkpoint of the one before (column start)."
         + (f" Options added to the runs of this invocation: `{' '.join(args.options)}`."
@@ -226,8 +232,8 @@ def header(branch, vs, box, need, sizes, given, args):
         "negative eigenvalues of the second variation in each azimuthal mode m = 0, 1, ... "
         "(`-pf_modes M`; rigid motions excluded), 0 everywhere for a stable shape. run s: the step's "
         "own wall time (grid set-up on the first); wall s: this invocation's, checkpoint included.\n\n"
-        f"Regenerate: `python -m pfmembrane.studies.branch --branch {branch} --from {vs[0]:g} "
-        f"--to {vs[-1]:g} --step {args.step:g} --out {args.out} --np {args.np} --eps {args.eps:g} "
+        f"Regenerate: `python runs/branches/branch.py --branch {branch} --from {vs[0]:g} "
+        f"--to {vs[-1]:g} --step {args.step:g} --out {shown(args.out)} --np {args.np} --eps {args.eps:g} "
         f"--nodes {args.nodes}{f' --box {rb:g},{zb:g}' if given else ''} --force"
         f"{' -- ' + ' '.join(args.options) if args.options else ''}`.\n\n")
 
@@ -237,18 +243,19 @@ def continuation(args):
     try:
         vs = volumes(args.start, args.stop, args.step)
     except ValueError as e:
-        print(f"pfmembrane.studies.branch: {e}", file=sys.stderr)
+        print(f"{NAME}: {e}", file=sys.stderr)
         return 2
     scene = SCENE.format(args.branch)
     radius, c0, k = (scene_value(scene, name) for name in ('radius', 'c0', 'k'))
     need, sizes = required_box(args.branch, vs, args.eps, radius, c0, k, margin=MARGIN)
     box = args.box or default_box(need)
     if box[0] < need[0] or box[1] < need[1]:
-        print(f"pfmembrane.studies.branch: --box {box[0]:g},{box[1]:g} cannot hold the {args.branch} "
+        print(f"{NAME}: --box {box[0]:g},{box[1]:g} cannot hold the {args.branch} "
               f"branch from v = {vs[0]:g} to {vs[-1]:g} with a margin of {MARGIN:g} eps: "
               f"need Rb >= {need[0]:.4f}, Zb >= {need[1]:.4f}", file=sys.stderr)
         return 2
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.branch', sys.argv[1:])
+    launch.ensure_ranks(args.np, __file__, sys.argv[1:])
+    record = report.provenance()   # before the measurement (and before MPI starts)
     t0 = time.time()
     steps = run(args.branch, vs, box, args)
     elapsed = time.time() - t0
@@ -268,7 +275,7 @@ def continuation(args):
     out = os.path.join(args.out, f"{args.branch}.md")
     os.makedirs(args.out, exist_ok=True)
     with open(out, 'w') as f:
-        f.write(header(args.branch, vs, box, need, sizes, args.box is not None, args))
+        f.write(header(args.branch, vs, box, need, sizes, args.box is not None, args, record))
         f.write('\n'.join(rows) + '\n\n' + '\n\n'.join(notes) + '\n')
     print('\n'.join(rows + notes))
     print(out)
@@ -277,10 +284,11 @@ def continuation(args):
 
 def checkpoints(directory):
     """The checkpoints of every branch under `directory`: {branch: [(path, Checkpoint)]}
-    in order of v."""
+    in order of v (`pf.read(path).checkpoint()`)."""
     found = {}
     for branch in BRANCHES:
-        pairs = [(p, checkpoint.read(p)) for p in glob.glob(os.path.join(directory, branch, 'v*.h5'))]
+        pairs = [(p, pf.read(p).checkpoint())
+                 for p in glob.glob(os.path.join(directory, branch, 'v*.h5'))]
         if pairs:
             found[branch] = sorted(pairs, key=lambda pair: pair[1].attrs['reduced_volume'])
     return found
@@ -395,14 +403,15 @@ def _box(text):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.branch',
+    ap = argparse.ArgumentParser(prog='python runs/branches/branch.py',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('--branch', choices=BRANCHES)
     ap.add_argument('--from', dest='start', type=float, default=0.95, help='first reduced volume')
     ap.add_argument('--to', dest='stop', type=float, default=0.65, help='last reduced volume')
     ap.add_argument('--step', type=float, default=0.05, help='reduced-volume step')
-    ap.add_argument('--out', default=os.path.join('runs', 'branches'),
-                    help='directory of the checkpoints (OUT/<branch>/) and tables')
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'branches'),
+                    help='directory of the checkpoints (OUT/<branch>/) and tables '
+                         '(default: runs/branches of the repository)')
     ap.add_argument('--np', type=int, default=2, help='MPI ranks')
     ap.add_argument('--eps', type=float, default=0.04, help='regularization width')
     ap.add_argument('--nodes', type=int, default=6124, help='node count of the uniform grid')
@@ -416,7 +425,7 @@ def main(argv=None):
         try:
             print(plot(args.plot))
         except FileNotFoundError as e:
-            print(f"pfmembrane.studies.branch: {e}", file=sys.stderr)
+            print(f"{NAME}: {e}", file=sys.stderr)
             return 1
         return 0
     if not args.branch:

@@ -1,6 +1,6 @@
 """Azimuthal stability along branches: the index per mode m of every state.
 
-    python -m pfmembrane.studies.stability [--np 2] [--groups 1] [--eps 0.04] [--nodes 6124]
+    python runs/modes/stability.py [--np 2] [--groups 1] [--eps 0.04] [--nodes 6124]
         [--modes 6] [--out runs/modes] [--series NAME ...] [--count K] [--values X ...]
         [--box Rb,Zb] [-- SOLVER OPTIONS]
 
@@ -11,8 +11,9 @@ cos(m theta), rigid motions excluded) and the lowest eigenvalue per m. A series 
 its first failed solve. The series (`SERIES`): the prolate, oblate and stomatocyte branches
 at c0 = 0 for v = 0.95 ... 0.55, and the oblate branch in the reduced spontaneous curvature
 c0 = 2 C0 R = 0 ... 2.5 at v = 0.8, 0.7, 0.6, and in v at c0 = 2.8 (pde2path's vesicle demo); `--count K` keeps the first K points of each, `--values X ...` replaces their values.
-Writes OUT/branches.md (one table per series) and OUT/branches.png (the lowest eigenvalue of
-m = 2, 3, 4 along each series).
+Writes OUT/branches.md (one table per series, headed by the provenance of the measurement:
+`report.provenance`) and OUT/branches.png (the lowest eigenvalue of m = 2, 3, 4 along each
+series); OUT defaults to runs/modes of the repository, whatever the working directory.
 
 The series are independent: `--groups G` splits the NP ranks into G groups of NP / G ranks,
 each following every G-th series on its own sub-communicator, so one `mpiexec -n NP` keeps
@@ -26,10 +27,14 @@ import time
 
 import numpy as np
 
-from pfmembrane.io.options import BRANCHES
+import pfmembrane as pf
+from pfmembrane import report
+from pfmembrane.analysis.sizing import default_box, required_box
 from pfmembrane.paper import paper_spacing
 from pfmembrane import series as launch
 from pfmembrane.report import iterations
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 RADIUS = 0.4
 VOLUMES = [round(0.95 - 0.05 * i, 2) for i in range(9)]
@@ -56,8 +61,6 @@ def scenes(name, values=None):
 
 def box_of(branch, points, eps):
     """One box for a series: every sharp shape and start of it with MARGIN eps."""
-    from pfmembrane.analysis.sizing import required_box
-    from pfmembrane.studies.branch import default_box
     need = np.max([required_box(branch, [v], eps, RADIUS, c0 / (2 * RADIUS), margin=MARGIN)[0]
                    for v, c0 in points], axis=0)
     return default_box(tuple(need))
@@ -65,7 +68,6 @@ def box_of(branch, points, eps):
 
 def follow(name, args, comm, say):
     """Solve and analyse the points of one series in order. Collective on `comm`."""
-    import pfmembrane as pf
     branch = SERIES[name][0]
     points = scenes(name, args.values)[:args.count]
     box = args.box or box_of(branch, points, args.eps)
@@ -108,9 +110,16 @@ def row(r):
             f"| {a['time_modes']:.1f} | {r['wall']:.1f} |")
 
 
-def write(results, args, out):
-    """OUT/branches.md and OUT/branches.png. Not collective."""
-    lines = ["# Azimuthal stability along branches\n",
+def shown(path):
+    """`path` as a page names it: relative to the repository root when inside it."""
+    path = os.path.abspath(path)
+    return os.path.relpath(path, ROOT) if os.path.commonpath([path, ROOT]) == ROOT else path
+
+
+def write(results, args, out, record):
+    """OUT/branches.md, headed by the provenance `record` (`report.provenance`), and
+    OUT/branches.png. Not collective."""
+    lines = ['\n'.join(report.header('Azimuthal stability along branches', record)),
              f"eps {args.eps:g}, uniform grids of the spacing of {args.nodes} nodes in the paper box, R = {RADIUS:g}, "
              f"m = 0 ... {args.modes}, {args.np} MPI ranks in {args.groups} group(s) on "
              f"{os.cpu_count()} cores. "
@@ -118,8 +127,8 @@ def write(results, args, out):
              "eigenvalues of the second variation of E - nu . (c - c0) in the mode "
              "psi(r, z) cos(m theta) (on the constraints' tangent space for m = 0), rigid "
              "motions excluded; lowest eigenvalue per m: the least non-rigid one.\n",
-             f"Regenerate: `python -m pfmembrane.studies.stability --np {args.np} --eps "
-             f"{args.eps:g} --nodes {args.nodes} --modes {args.modes} --out {args.out}"
+             f"Regenerate: `python runs/modes/stability.py --np {args.np} --eps "
+             f"{args.eps:g} --nodes {args.nodes} --modes {args.modes} --out {shown(args.out)}"
              + (f" --series {' '.join(args.series)}" if args.series != list(SERIES) else '')
              + (f" --count {args.count}" if args.count else '')
              + (f" --values {' '.join(map(format, args.values))}" if args.values else '')
@@ -157,23 +166,25 @@ def write(results, args, out):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.stability',
+    ap = argparse.ArgumentParser(prog='python runs/modes/stability.py',
                                  description=__doc__.splitlines()[0])
     launch.group_arguments(ap, 'series')
     launch.grid_arguments(ap, 0.04, 6124, 'series (default: the paper box, grown where needed)')
     ap.add_argument('--modes', type=int, default=6, help='highest m')
-    ap.add_argument('--out', default=os.path.join('runs', 'modes'))
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'modes'),
+                    help='directory of the table and figure (default: runs/modes of the repository)')
     ap.add_argument('--series', nargs='+', default=list(SERIES), choices=list(SERIES))
     ap.add_argument('--count', type=int, help='the first COUNT points of each series')
     ap.add_argument('--values', type=float, nargs='+',
                     help="the followed parameter's values, in place of each series' own")
     args = launch.parsed(ap, argv)
-    args.series = [s for s in args.series if SERIES[s][0] in BRANCHES]
-    results = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.stability',
+    launch.ensure_ranks(args.np, __file__, argv)
+    record = report.provenance()   # before the measurement (and before MPI starts)
+    results = launch.on_groups(args.np, args.groups, __file__,
                                args.series, lambda name, comm, say: follow(name, args, comm, say))
     if results is not None:
         os.makedirs(args.out, exist_ok=True)
-        write(results, args, args.out)
+        write(results, args, args.out, record)
         print(os.path.join(args.out, 'branches.md'))
     return 0
 

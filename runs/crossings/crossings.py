@@ -1,7 +1,9 @@
 """The two c0 = 0 energy crossings of the spontaneous-curvature phase diagram.
 
-    python -m pfmembrane.studies.crossings [--np 2] [--eps 0.02] [--nodes 40000]
+    python runs/crossings/crossings.py [--np 2] [--eps 0.02] [--nodes 40000]
         [--out runs/crossings] [--branch NAME ...] [-- SOLVER OPTIONS]
+
+From any working directory: --out defaults to runs/crossings of the repository.
 
 Seifert, Berndl and Lipowsky (1991): at c0 = 0 the prolate branch has the least energy
 above v = 0.652, the oblate one between 0.592 and 0.652, the stomatocyte below 0.592.
@@ -26,12 +28,14 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
+from pfmembrane import series
+from pfmembrane.analysis.sizing import required_box, rounded_up
+from pfmembrane.paper import SCENE, paper_spacing
+from pfmembrane.report import header, iterations, provenance
 from pfmembrane.sharp import solver as sharp
-from pfmembrane.paper import paper_spacing
-from pfmembrane import series as launch
-from pfmembrane.report import iterations
 
-RADIUS = 0.4
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RADIUS = SCENE['radius']
 # name: (the branch of least energy above the crossing, the one below, the bracket in v,
 # SBL's value)
 CROSSINGS = {'prolate-oblate': ('prolate', 'oblate', (0.64, 0.66), 0.652),
@@ -79,7 +83,6 @@ def crossing(vs, upper, lower):
 def box_of(branch, vs, eps):
     """One box for a series: every sharp shape and start of it with MARGIN eps,
     rounded up to BOX_STEP."""
-    from pfmembrane.analysis.sizing import required_box, rounded_up
     need = required_box(branch, vs, eps, RADIUS, margin=MARGIN)[0]
     return rounded_up(need, BOX_STEP)
 
@@ -156,17 +159,25 @@ def sharp_table(say):
     return table
 
 
-def write(sharp_rows, series, args, wall, out):
-    """OUT/notes.md. Not collective."""
-    command = (f"python -m pfmembrane.studies.crossings --np {args.np} --eps {args.eps:g} "
-               f"--nodes {args.nodes} --out {args.out}"
+def shown(path):
+    """`path` as a page shows it: relative to the repository when inside it."""
+    relative = os.path.relpath(os.path.abspath(path), ROOT)
+    return path if relative.startswith(os.pardir) else relative
+
+
+def write(sharp_rows, series, args, wall, out, record=None):
+    """OUT/notes.md, under the provenance `record` (`provenance()`, taken at the start of
+    the run; now by default). Not collective."""
+    command = (f"python runs/crossings/crossings.py --np {args.np} --eps {args.eps:g} "
+               f"--nodes {args.nodes} --out {shown(args.out)}"
                + (f" --branch {' '.join(args.branch)}" if args.branch != list(VOLUMES) else '')
                + (' -- ' + ' '.join(args.options) if args.options else ''))
-    lines = ["# The c0 = 0 energy crossings: prolate-oblate and oblate-stomatocyte\n",
+    lines = [*header("The c0 = 0 energy crossings: prolate-oblate and oblate-stomatocyte",
+                     record or provenance()),
              "Seifert, Berndl and Lipowsky (Phys. Rev. A 44, 1182 (1991)): the prolate branch "
              "has the least energy for v above about 0.652, the oblate one between 0.592 and "
              "0.652, the stomatocyte below 0.592. Method in the docstring of "
-             "`pfmembrane/studies/crossings.py`.\n",
+             "`runs/crossings/crossings.py`.\n",
              f"Regenerate: `{command}` (`make crossings`). {args.np} MPI ranks on "
              f"{os.cpu_count()} cores, shared with another 2-rank job; wall time {wall:.0f} s.\n",
              "## Sharp interface\n",
@@ -216,27 +227,28 @@ def write(sharp_rows, series, args, wall, out):
 
 
 def main(argv=None):
+    record = provenance()  # before anything is measured
     argv = sys.argv[1:] if argv is None else argv
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.crossings',
+    ap = argparse.ArgumentParser(prog='python runs/crossings/crossings.py',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('--np', type=int, default=2, help='MPI ranks')
     ap.add_argument('--eps', type=float, default=0.02)
     ap.add_argument('--nodes', type=int, default=40000, help='nodes in the paper box (scaled)')
-    ap.add_argument('--out', default=os.path.join('runs', 'crossings'))
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'crossings'))
     ap.add_argument('--branch', nargs='+', default=list(VOLUMES), choices=list(VOLUMES))
     ap.add_argument('options', nargs='*', metavar='-- OPTION')
     args = ap.parse_args(argv)
     args.solver = {k.lstrip('-'): v for k, v in zip(args.options[::2], args.options[1::2])}
-    launch.ensure_ranks(args.np, 'pfmembrane.studies.crossings', argv)
+    series.ensure_ranks(args.np, __file__, argv)
     import pfmembrane as pf
-    PETSc = pf.api.petsc(sys.argv[:1])
+    PETSc = pf.petsc(sys.argv[:1])
     say = PETSc.Sys.Print
     t0 = time.perf_counter()
-    series = {b: follow(b, VOLUMES[b], args, say) for b in args.branch}
+    branches = {b: follow(b, VOLUMES[b], args, say) for b in args.branch}
     if PETSc.COMM_WORLD.getRank() == 0:
         sharp_rows = sharp_table(say)
         os.makedirs(args.out, exist_ok=True)
-        write(sharp_rows, series, args, time.perf_counter() - t0, args.out)
+        write(sharp_rows, branches, args, time.perf_counter() - t0, args.out, record)
         print(os.path.join(args.out, 'notes.md'))
     return 0
 

@@ -1,11 +1,14 @@
 """The shape atlas: branches in v by pseudo-arclength continuation, and the phase diagram.
 
-    python -m pfmembrane.studies.atlas [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
+    python runs/atlas/atlas.py [--np 2] [--groups 1] [--eps 0.02] [--nodes 40000]
         [--families prolate oblate stomatocyte pear] [--c0 X ...] [--ds 0.05] [--steps 120]
         [--box Rb,Zb] [--gamma 0.8] [--adapt F --coarse DIR [--band W]] [--out runs/atlas] [--force]
         [-- SOLVER OPTIONS]
-    python -m pfmembrane.studies.atlas --plot runs/atlas
-    python -m pfmembrane.studies.atlas --merge runs/atlas runs/atlas/stomatocyte --out DIR
+    python runs/atlas/atlas.py --plot runs/atlas
+    python runs/atlas/atlas.py --merge runs/atlas runs/atlas/stomatocyte --out DIR
+
+From any working directory: --out defaults to runs/atlas of the repository; paths given are
+the caller's.
 
 Each branch is a family (`FAMILIES`) at one reduced spontaneous curvature c0 = 2 C0 R: one
 grid of the spacing of NODES nodes in the paper box, in a box holding the family's sharp
@@ -15,8 +18,9 @@ solve at the family's first v from the sharp shape's profile (`-pf_start sharp`)
 V_MAX, every point with its energy E, the level set's own Canham-Helfrich energy (the
 sharp-limit estimate), multipliers, stability index on the constraints' tangent space,
 topology and the events: a fold, an index change without one (a bifurcation), a topology
-change. A continuation ends at the range, after STEPS points, after OTHER_TOPOLOGY points
-of a topology without a level-set energy (several spheres), or where its corrector fails.
+change. A continuation ends at the range, after STEPS points, after
+`branching.OTHER_TOPOLOGY` points of a topology without a level-set energy (several
+spheres: `branching.topology_lost`), or where its corrector fails.
 
 The phase diagram: at each c0 the least level-set energy over the branches, on a grid of v
 (linear interpolation between the points of a stretch of one topology), its regions, the
@@ -26,8 +30,9 @@ transitions, ends, time per point), OUT/atlas.json (everything the figures need)
 `--plot` too, OUT/energy.png (E level set against v per c0) and OUT/diagram.png (v across,
 c0 up, regions coloured and labelled, silhouettes of the least-energy shapes).
 
-Each branch is kept in OUT/branches/<family>_c<c0>.h5 as soon as it is followed, and a
-later run reuses it (unless --force): a run that dies loses only the branch it was on.
+Each branch is kept in OUT/branches/<family>_c<c0>.h5 (`pfmembrane.result.save_branch`:
+its points and its description) as soon as it is followed, and a later run reuses it
+(unless --force): a run that dies loses only the branch it was on.
 The branches are independent: `--groups G` splits the NP ranks into G groups of NP / G, each
 following every G-th branch on its own sub-communicator; the tables are the same whatever
 the grouping.
@@ -51,21 +56,24 @@ import math
 import os
 import sys
 import time
-import warnings
 
 import numpy as np
 
-from pfmembrane.analysis.checks import phase_field_checks
-from pfmembrane.io.options import HELP, Params, UsageError
-from pfmembrane.paper import paper_spacing
-from pfmembrane import series as launch
+from pfmembrane import report, series
+from pfmembrane.analysis.checks import ENERGETIC
+from pfmembrane.analysis.sizing import branch_box
+from pfmembrane.cli.runner import UsageError
+from pfmembrane.paper import SCENE, paper_spacing
+from pfmembrane.result import read_branch, save_branch
 
-RADIUS = 0.4
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RADIUS = SCENE['radius']
 V_MIN, V_MAX = 0.55, 0.95
 # name: (branch of the start, half box, first v). The stomatocyte starts where its neck
-# is widest (`studies.crossings`) and is followed both ways. The pear is reached by branch
+# is widest (runs/crossings) and is followed both ways. The pear is reached by branch
 # switching (SWITCHED): the prolate in the full box, where its up-down antisymmetric modes
-# live, down in v to its first index change without a fold, then along the critical mode.
+# live, down in v to its first index change without a fold (`branching.bifurcation`, a
+# pear-shaped point counting as one: `branching.asymmetric`), then along the critical mode.
 FAMILIES = {'prolate': ('prolate', True, 0.95), 'oblate': ('oblate', True, 0.95),
             'stomatocyte': ('stomatocyte', False, 0.62), 'pear': ('prolate', False, 0.95)}
 SWITCHED = {'pear'}
@@ -75,31 +83,22 @@ MARGIN = 5.0      # eps between the box and every sharp shape of a branch
 BOX_STEP = 0.05
 BOX_SAMPLES = 9   # volumes whose sharp shapes size a branch's box
 DV = 0.0025       # v grid of the diagram
-SPHERE = '1 sphere'
-ENERGETIC = (SPHERE, '1 torus')   # the topologies with a level-set energy
-OTHER_TOPOLOGY = 3  # a continuation ends after this many points of another topology
-REFINE = 4          # step ratio of each bracketing of a bifurcation
-ASYMMETRY = 5e-3    # up-down asymmetry (over R) past which a full-box shape is a pear
+SPHERE = ENERGETIC[0]  # '1 sphere'
+# Defaults of every grid: `pf.Grid`'s (the paper's gamma, no spacing floor), no band.
+GAMMA, FLOOR, BAND = 0.8, 0.0, 0.0
 
 
 def box_of(family, c0, eps):
     """One box for a branch: its family's sharp shapes at BOX_SAMPLES volumes of its range
-    (those the sharp solver finds) with MARGIN eps, rounded up to BOX_STEP."""
-    from pfmembrane.analysis.sizing import required_box, rounded_up
+    (those the sharp solver finds) with MARGIN eps, rounded up to BOX_STEP
+    (`sizing.branch_box`)."""
     branch, half, first = FAMILIES[family]
     top = V_MAX if first >= V_MAX else min(V_MAX, first + 0.1)
-    need = np.zeros(2)
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore', RuntimeWarning)
-        for v in np.linspace(V_MIN, top, BOX_SAMPLES):
-            try:
-                need = np.maximum(need, required_box(branch, [v], eps, RADIUS,
-                                                     c0 / (2 * RADIUS), margin=MARGIN)[0])
-            except (RuntimeError, ValueError):
-                continue
-    if not need.any():
-        raise RuntimeError(f"no sharp {branch} shape at c0 = {c0:g} sizes a box")
-    return rounded_up(need, BOX_STEP)
+    try:
+        return branch_box(branch, np.linspace(V_MIN, top, BOX_SAMPLES), eps, RADIUS,
+                          c0 / (2 * RADIUS), margin=MARGIN, step=BOX_STEP)
+    except RuntimeError:
+        raise RuntimeError(f"no sharp {branch} shape at c0 = {c0:g} sizes a box") from None
 
 
 def point(res, wall):
@@ -114,38 +113,30 @@ def point(res, wall):
                 wall=wall)
 
 
+def shown(path):
+    """`path` as a page shows it: relative to the repository when inside it."""
+    relative = os.path.relpath(os.path.abspath(path), ROOT)
+    return path if relative.startswith(os.pardir) else relative
+
+
 def branch_path(out, family, c0):
     return os.path.join(out, 'branches', f"{family}_c{c0:g}.h5")
 
 
-def save(path, branch):
-    """A followed branch to `path` (HDF5: its description as JSON, the nodes and every
-    point's nodal phi), written whole or not at all. Not collective."""
-    import h5py
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    nodes, _, attrs = branch['shapes'][0] if branch['shapes'] else (np.zeros((0, 2)), None, {})
-    with h5py.File(path + '.part', 'w') as f:
-        f.attrs['branch'] = json.dumps({k: v for k, v in branch.items() if k != 'shapes'})
-        f.attrs['scene'] = json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                       for k, v in attrs.items()
-                                       if isinstance(v, (str, int, float, np.ndarray,
-                                                         np.number))}, default=float)
-        f['nodes'] = nodes
-        f['phi'] = np.array([phi for _, phi, _ in branch['shapes']] or np.zeros((0, 0)))
-    os.replace(path + '.part', path)
+def save(path, branch, comm=None):
+    """A followed branch to `path`: its states (`shapes`, Results) and the rest of its
+    description, in one versioned file written whole or not at all
+    (`pfmembrane.result.save_branch`). Collective on `comm` (rank 0's branch is written)."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    save_branch(path, branch['shapes'], comm=comm,
+                attrs={k: v for k, v in branch.items() if k != 'shapes'})
 
 
 def load(path):
-    """The branch `save` wrote."""
-    import h5py
-    with h5py.File(path, 'r') as f:
-        branch = json.loads(f.attrs['branch'])
-        scene = json.loads(f.attrs['scene'])
-        nodes = f['nodes'][()]
-        branch['shapes'] = [(nodes, phi, dict(scene, reduced_volume=p['v']))
-                            for phi, p in zip(f['phi'][()], branch['points'])]
-    branch['box'] = tuple(branch['box'])
-    return branch
+    """The branch `save` wrote (`pfmembrane.result.read_branch`; a file of the layout
+    before the versioned one too), its `shapes` Results."""
+    shapes, branch = read_branch(path)
+    return dict(branch, shapes=shapes, box=tuple(branch['box']))
 
 
 def follow(family, c0, args, comm, say):
@@ -158,8 +149,7 @@ def follow(family, c0, args, comm, say):
         say(f"-- {family} c0 {c0:g}: {path} (reused)")
         return load(path)
     branch = trace(family, c0, args, comm, say)
-    if mpi.Get_rank() == 0:
-        save(path, branch)
+    save(path, branch, mpi)
     return branch
 
 
@@ -174,6 +164,7 @@ def coarse_branch(out, family, c0):
 def trace(family, c0, args, comm, say):
     """`follow`, computed."""
     import pfmembrane as pf
+    from pfmembrane.branching import OTHER_TOPOLOGY, asymmetric, bifurcation, topology_lost
     branch, half, first = FAMILIES[family]
     t0 = time.perf_counter()
     basis = dict(gamma=args.gamma, spacing_floor=args.floor)
@@ -185,7 +176,7 @@ def trace(family, c0, args, comm, say):
         scene = pf.Scene(reduced_volume=first, c0=c0 / (2 * RADIUS), radius=RADIUS,
                          box=box, branch=branch, symmetric=half)
         if coarse:
-            along = [pf.Result(*shape) for shape in coarse['shapes']]
+            along = coarse['shapes']
             grid = pf.adapt(along[0], args.adapt, comm=comm, along=along[1:], band=args.band,
                             **basis)
             say(grid.adapt_summary())
@@ -212,8 +203,8 @@ def trace(family, c0, args, comm, say):
     where = start.attrs['reduced_volume']
     if switch and start.converged:
         start, where, jumped = bifurcation(
-            start, args, lambda text: say(f"   {family} c0 {c0:g}: {branch} {text}"),
-            left=asymmetric)
+            start, 'reduced_volume', -args.ds, args.steps, V_MIN, options=args.solver,
+            say=lambda text: say(f"   {family} c0 {c0:g}: {branch} {text}"), left=asymmetric)
         if start is None:
             return dict(described, box=box, nodes=grid.n_nodes, eps_min=grid.eps_min,
                         ends=[f"no index change without a fold on the full-box {branch} "
@@ -221,7 +212,8 @@ def trace(family, c0, args, comm, say):
         say(f"-- {family} c0 {c0:g}: the {branch} branch bifurcates near v {where:.4f}"
             + (f", where its corrector left it for the {family}s" if jumped else ''))
     points = [dict(point(start, time.perf_counter() - t1), arclength=0.0, direction=0)]
-    shapes = [(start.nodes, start.phi, dict(start.attrs))]
+    # the start as it is now: the continuations give its attrs their index_0 after
+    shapes = [pf.Result(start.nodes, start.phi, dict(start.attrs))]
     ends = [f"started where the {branch}'s corrector left it at v {where:.4f}"] if jumped else []
     if resumed:
         ends.append(f"started from the last stable point of {args.coarse}'s branch at v {where:.4f}"
@@ -247,14 +239,13 @@ def trace(family, c0, args, comm, say):
             p = dict(point(res, now - last), arclength=res.attrs['arclength'],
                      direction=direction)
             last = now
-            stretch.append((p, (res.nodes, res.phi, dict(res.attrs))))
+            stretch.append((p, pf.Result(res.nodes, res.phi, dict(res.attrs))))
             say(f"   {family} c0 {c0:g}: v {p['v']:.4f} E {p['E']:.6f} level {p['level']:.6f} "
                 f"index {p['index']} {p['topology']} its {p['its']} {p['wall']:.2f} s")
             if not V_MIN - 1e-9 <= p['v'] <= V_MAX + 1e-9:
                 ends.append(f"{way(direction, p['v'])}: left the range at v {p['v']:.4f}")
                 break
-            if all(q['topology'] not in ENERGETIC for q, _ in stretch[-OTHER_TOPOLOGY:]) \
-                    and len(stretch) >= OTHER_TOPOLOGY:
+            if topology_lost([q['topology'] for q, _ in stretch]):
                 ends.append(f"{way(direction, p['v'])}: {p['topology']} at v {p['v']:.4f}, "
                             f"{OTHER_TOPOLOGY} points without a level-set energy")
                 break
@@ -273,54 +264,6 @@ def trace(family, c0, args, comm, say):
 def last_stable(points):
     """The index of the last of a branch's points with stability index 0 (0 if none)."""
     return max((i for i, p in enumerate(points) if p['index'] == 0), default=0)
-
-
-def bifurcation(start, args, say, parameter='reduced_volume', ds=None, bound=V_MIN,
-                through_folds=True, left=None, scale=1.0):
-    """(a point just past the first index change without a fold, its `parameter`, whether
-    it left the branch) on `start`'s branch followed in `parameter` from steps `ds` (by
-    default -args.ds, down in v) and on, should it fold back (unless not `through_folds`);
-    or (None, the farthest value it reached, False) where there is none before `bound`, a
-    fold or the end of the continuation. A point on which `left` holds (it lost the
-    branch's symmetry) counts as a change too: near a pitchfork the corrector can land on
-    the crossing branch, and where that one turns back the step reads as a fold. The
-    change is bracketed again from the point before it with steps REFINE times shorter,
-    twice, so that the switch starts near the bifurcation. Each point is reported through
-    `say`, its parameter times `scale`; only the one returned gets the level-set checks."""
-    import pfmembrane as pf
-    ds = -args.ds if ds is None else ds
-    sign = math.copysign(1.0, ds)
-    value = farthest = start.attrs[parameter]
-    before = start
-    for level in range(3):
-        for res in pf.continuation(before, parameter, ds, args.steps,
-                                   ds_max=abs(ds) if level else None, options=args.solver,
-                                   checks=False):
-            value = res.attrs[parameter]
-            farthest = max(farthest * sign, value * sign) * sign
-            jumped = bool(left and left(res))
-            say(f"{parameter} {scale * value:.4f} index {res.attrs['index_0']} "
-                f"(step {scale * abs(ds):g})" + (' fold' if res.attrs['fold'] else '')
-                + (' off the branch' if jumped else ''))
-            if res.attrs['index_change'] or jumped:
-                break
-            if sign * (value - bound) > 0 or (res.attrs['fold'] and not through_folds):
-                return None, farthest, False
-            before = res
-        else:
-            return None, farthest, False
-        ds /= REFINE
-    res.attrs.update(phase_field_checks(res.grid.comm.tompi4py(), res.grid.nodes,
-                                               res.phi, res.attrs))
-    return res, value, jumped
-
-
-def asymmetric(res):
-    """Whether the level set phi_h = 0 of a full-box result is up-down asymmetric by more
-    than ASYMMETRY (`levelset.up_down_asymmetry`): a pear, not a prolate. Collective."""
-    from pfmembrane.analysis import levelset
-    curve = levelset.level_set(res.checkpoint().unfolded())
-    return bool(curve) and abs(levelset.up_down_asymmetry(curve, res.scene.radius)) > ASYMMETRY
 
 
 def paths(points):
@@ -409,8 +352,10 @@ def transitions(best, vs):
             for i in range(len(vs) - 1) if best[i][0] != best[i + 1][0]]
 
 
-def write(branches, args, out, wall):
-    """OUT/branches.md, and by `diagram` the phase diagram. Not collective."""
+def write(branches, args, out, wall, record=None):
+    """OUT/branches.md, and by `diagram` the phase diagram, under the provenance `record`
+    (`report.provenance`, taken at the start of the run; now by default). Not collective."""
+    record = record or report.provenance()
     grids = (f"the nodes of the branches of {args.coarse} relocated by CVT for 1 + "
              f"{args.adapt:g} max |grad phi_h| over each branch's points"
              + (f" (and within {args.band:g} of them)" if args.band else '') if args.adapt else
@@ -419,17 +364,17 @@ def write(branches, args, out, wall):
     head = (f"eps {args.eps:g}, {grids}, max-ent gamma {args.gamma:g}{floor}, R = {RADIUS:g}, "
             f"k = 1; {args.np} MPI ranks in "
             f"{args.groups} group(s) on {os.cpu_count()} cores.")
-    command = (f"`python -m pfmembrane.studies.atlas --np {args.np} --groups {args.groups} "
+    command = (f"`python runs/atlas/atlas.py --np {args.np} --groups {args.groups} "
                f"--eps {args.eps:g}" + ('' if args.adapt else f" --nodes {args.nodes}")
                + f" --ds {args.ds:g} --steps {args.steps}"
                f" --families {' '.join(args.families)} --c0 {' '.join(map(format, args.c0))}"
                + (f" --box {args.box[0]:g},{args.box[1]:g}" if args.box else '')
                + (f" --adapt {args.adapt:g} --coarse {args.coarse}" if args.adapt else '')
                + (f" --band {args.band:g}" if args.band else '')
-               + (f" --gamma {args.gamma:g}" if args.gamma != Params.gamma else '')
+               + (f" --gamma {args.gamma:g}" if args.gamma != GAMMA else '')
                + (f" --floor {args.floor:g}" if args.floor else '')
-               + f" --out {args.out}`")
-    lines = ["# Branches of the shape atlas\n", head + "\n", f"Regenerate: {command}.\n",
+               + f" --out {shown(args.out)}`")
+    lines = [*report.header("Branches of the shape atlas", record), head + "\n", f"Regenerate: {command}.\n",
              "E level set: the Canham-Helfrich energy of phi_h = 0 (the sharp-limit estimate; "
              "nan where it is not one sphere or torus); index: negative eigenvalues of the "
              "Hessian of the Lagrangian on the constraints' tangent space (the bordered "
@@ -452,16 +397,18 @@ def write(branches, args, out, wall):
               f"{np.nanmedian([median_step(b) for b in branches]):.2f} s. This invocation: "
               f"{wall:.0f} s wall on {args.np} ranks (branches it reused cost it nothing).")
     diagram(branches, head, command, footer, silhouettes(branches), out,
-            dict(eps=args.eps, nodes=args.nodes, np=args.np))
+            dict(eps=args.eps, nodes=args.nodes, np=args.np), record)
 
 
-def diagram(branches, head, command, footer, pictures, out, about):
-    """OUT/diagram.md, OUT/atlas.json (`about` the run, the branches without their
-    shapes, the silhouettes `pictures`: everything the figures need) and the figures.
-    Not collective."""
+def diagram(branches, head, command, footer, pictures, out, about, record=None):
+    """OUT/diagram.md (under the provenance `record`, now by default), OUT/atlas.json
+    (`about` the run, the branches without their shapes, the silhouettes `pictures`:
+    everything the figures need) and the figures. Not collective."""
+    record = record or report.provenance()
     branches = [{k: v for k, v in b.items() if k != 'shapes'} for b in branches]
     vs = grid_v()
-    lines = ["# The phase diagram of the spontaneous-curvature model\n", head + "\n",
+    lines = [*report.header("The phase diagram of the spontaneous-curvature model", record),
+             head + "\n",
              f"Regenerate: {command}.\n",
              "At each c0 (reduced, 2 C0 R) the state of least level-set energy over the "
              f"branches on a grid of v spaced {DV:g}; transitions: the v between two grid "
@@ -489,11 +436,13 @@ def diagram(branches, head, command, footer, pictures, out, about):
     plot(out)
 
 
-def merge(sources, out):
+def merge(sources, out, record=None):
     """One phase diagram of the branches of several atlases (SOURCE/atlas.json each): a
     family at a c0 that a later source followed too is the later one's (a family resolved
     at a smaller eps, say). Each region's silhouette comes from the branch files where the
-    sources still hold them, else from the sources' own silhouettes. Not collective."""
+    sources still hold them, else from the sources' own silhouettes. `record`: as
+    `diagram`'s. Not collective."""
+    record = record or report.provenance()
     kept, pictures = {}, {}
     for source in sources:
         with open(os.path.join(source, 'atlas.json')) as f:
@@ -524,8 +473,8 @@ def merge(sources, out):
                         for e, families in sorted(at.items(), reverse=True)) + '.')
     footer = (f"{sum(len(b['points']) for b in branches)} points on {len(branches)} branches; "
               f"their times are in each source's diagram.md.")
-    diagram(branches, head, f"`python -m pfmembrane.studies.atlas --merge {' '.join(sources)} "
-            f"--out {out}`", footer, shapes, out, dict(eps=min(at), merged=sources))
+    diagram(branches, head, f"`python runs/atlas/atlas.py --merge {' '.join(sources)} "
+            f"--out {shown(out)}`", footer, shapes, out, dict(eps=min(at), merged=sources), record)
 
 
 def folds(branch):
@@ -570,7 +519,6 @@ def silhouettes(branches):
     """The level set of the least-energy state nearest the middle of each region of each
     c0, as (c0, v, label, [[r...], [z...]] per piece) about its centroid."""
     from pfmembrane.analysis import levelset
-    from pfmembrane.io.checkpoint import Checkpoint
     out = []
     for c0 in sorted({b['c0'] for b in branches}):
         for name, mid in middles(branches, c0):
@@ -580,13 +528,12 @@ def silhouettes(branches):
             if not candidates:  # branches read from atlas.json alone (`merge`)
                 continue
             _, b, i = min(candidates, key=lambda t: t[0])
-            nodes, phi, attrs = b['shapes'][i]
-            ck = Checkpoint(nodes=nodes, phi=phi, attrs=attrs).unfolded()
+            shape = b['shapes'][i]
             try:
-                curve = levelset.level_set(ck)
+                curve = levelset.level_set(shape.checkpoint().unfolded())
             except (ValueError, RuntimeError):
                 continue
-            zc = 0.5 * float(attrs['box'][1])
+            zc = 0.5 * float(shape.attrs['box'][1])
             out.append(dict(c0=c0, v=b['points'][i]['v'], label=name,
                             pieces=[[c[:, 0].tolist(), (c[:, 1] - zc).tolist()]
                                     for c in curve]))
@@ -673,34 +620,38 @@ def plot(out):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ap = argparse.ArgumentParser(prog='python -m pfmembrane.studies.atlas',
+    record = report.provenance()  # before anything is measured
+    ap = argparse.ArgumentParser(prog='python runs/atlas/atlas.py',
                                  description=__doc__.splitlines()[0])
-    launch.group_arguments(ap, 'branch')
-    launch.grid_arguments(ap, 0.02, 40000, "branch (default: its family's sharp shapes')")
+    series.group_arguments(ap, 'branch')
+    series.grid_arguments(ap, 0.02, 40000, "branch (default: its family's sharp shapes')")
     ap.add_argument('--families', nargs='+', default=DEFAULT_FAMILIES, choices=list(FAMILIES))
     ap.add_argument('--c0', type=float, nargs='+', default=CURVATURES,
                     help='reduced spontaneous curvatures 2 C0 R')
     ap.add_argument('--ds', type=float, default=0.05, help='first arclength step')
     ap.add_argument('--steps', type=int, default=120, help='most points per continuation')
-    ap.add_argument('--out', default=os.path.join('runs', 'atlas'))
+    ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'atlas'))
     ap.add_argument('--adapt', type=float, metavar='F',
                     help='follow each branch on the nodes of its branch in --coarse, relocated '
                          'by CVT for 1 + F max |grad phi_h| over its points')
     ap.add_argument('--coarse', metavar='DIR', help='the atlas whose branches --adapt follows')
-    ap.add_argument('--band', type=float, default=Params.adapt_band, metavar='W',
-                    help=f"{HELP['adapt_band']}, of --adapt")
-    ap.add_argument('--gamma', type=float, default=Params.gamma,
-                    help=f"{HELP['gamma']} of every grid; graded grids want less than "
-                         "uniform ones (runs/pears/README.md)")
-    ap.add_argument('--floor', type=float, default=Params.spacing_floor, metavar='Q',
-                    help=f"{HELP['spacing_floor']}, of every grid")
+    ap.add_argument('--band', type=float, default=BAND, metavar='W',
+                    help='width w: the CVT density takes the largest |grad phi_h| within w, so '
+                         'the nodes are evenly spaced across the interface (0: none), of --adapt')
+    ap.add_argument('--gamma', type=float, default=GAMMA,
+                    help='max-ent locality gamma (beta_a = gamma / h_a^2) of every grid; graded '
+                         'grids want less than uniform ones (runs/pears/README.md)')
+    ap.add_argument('--floor', type=float, default=FLOOR, metavar='Q',
+                    help='quantile Q of the smoothed h_a below which beta_a stays gamma / h_Q^2: '
+                         'one locality over the finest nodes of a graded grid (0: none), of '
+                         'every grid')
     ap.add_argument('--force', action='store_true',
                     help='follow every branch again, even one OUT/branches holds')
     ap.add_argument('--plot', metavar='OUT', help='redraw the figures of OUT/atlas.json')
     ap.add_argument('--merge', metavar='SOURCE', nargs='+',
                     help="one diagram in --out of these atlases' branches, a family at a c0 "
                          "from the last source that has it")
-    args = launch.parsed(ap, argv)
+    args = series.parsed(ap, argv)
     if bool(args.adapt) != bool(args.coarse):
         ap.error('--adapt and --coarse go together')
     if args.band and not args.adapt:
@@ -709,16 +660,16 @@ def main(argv=None):
         plot(args.plot)
         return 0
     if args.merge:
-        merge(args.merge, args.out)
+        merge(args.merge, args.out, record)
         print(os.path.join(args.out, 'diagram.md'))
         return 0
     todo = [(f, c0) for c0 in args.c0 for f in args.families]
     t0 = time.perf_counter()
-    branches = launch.on_groups(args.np, args.groups, 'pfmembrane.studies.atlas', todo,
+    branches = series.on_groups(args.np, args.groups, __file__, todo,
                                 lambda piece, comm, say: follow(*piece, args, comm, say))
     if branches is not None:
         os.makedirs(args.out, exist_ok=True)
-        write(branches, args, args.out, time.perf_counter() - t0)
+        write(branches, args, args.out, time.perf_counter() - t0, record)
         print(os.path.join(args.out, 'diagram.md'))
     return 0
 
