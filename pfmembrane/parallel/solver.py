@@ -241,7 +241,8 @@ class Solver:
         try:
             return self.stage2(x)
         except SolveError as e:
-            self.print(f"stage2: {e}; both stages from the restart instead")
+            if self.p.summary or self.p.monitor:
+                self.print(f"stage2: {e}; both stages from the restart instead")
         x0.copy(x)
         self.nu = nu0
         self.stage1(x, solved_nu)
