@@ -32,11 +32,14 @@ def cpu_model():
 
 def provenance(command=None):
     """What measured the numbers about to be written: `commit` (short hash,
-    '+modified' when tracked files differ from it, 'unknown' outside git),
+    '+modified' when the package, the options files or a script differ from it,
+    'unknown' outside git),
     `date` (UTC), `cores`, `cpu`, `load` (1-minute load average now: call it
     at the start of the measurement) and `command` (default: this process's)."""
     commit = _git('rev-parse', '--short', 'HEAD') or 'unknown'
-    if commit != 'unknown' and _git('status', '--porcelain', '--untracked-files=no'):
+    # the code and the scenes, not the pages a study rewrites as it goes
+    if commit != 'unknown' and _git('status', '--porcelain', '--untracked-files=no', '--',
+                                    ':/pfmembrane', ':/options', ':/runs/*.py', ':/runs/**/*.py'):
         commit += '+modified'
     return {'commit': commit,
             'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
