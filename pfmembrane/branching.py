@@ -219,7 +219,8 @@ def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
              'max_phi': problem.assembly.max_abs_phi(branch.x), 'parent': ''}
     for key in ('sharp_energy', 'sharp_rel_error', 'sharp_dist_max', 'sharp_dist_mean',
                 'level_set_energy', 'topology', 'components', 'genus', 'torus_radii',
-                'index_m', 'lowest_m', 'time_modes', 'sharp_note'):
+                'index_m', 'lowest_m', 'time_modes', 'sharp_note',
+                'component_energies'):
         attrs.pop(key, None)
     phi = problem.nodal(branch.x, -1.0)
     if checks:

@@ -11,8 +11,9 @@ from pfmembrane.kernels import nodes as nodesets
 BOX = (1.5, 2.0)
 
 
-def field_checkpoint(path, distance, eps=0.05, n=3000):
-    """phi = tanh(d / (sqrt2 eps)) for a signed distance d(r, z) > 0 inside."""
+def field_checkpoint(path, distance, eps=0.05, n=3000, **scene):
+    """phi = tanh(d / (sqrt2 eps)) for a signed distance d(r, z) > 0 inside; `scene`
+    overrides attributes (c0, k, ...)."""
     nodes = nodesets.uniform(BOX, n)
     phi = np.tanh(distance(nodes[:, 0], nodes[:, 1]) / (np.sqrt(2.0) * eps))
     phi[nodesets.dirichlet_mask(nodes, BOX)] = -1.0
@@ -20,6 +21,7 @@ def field_checkpoint(path, distance, eps=0.05, n=3000):
              "c0": 0.0, "gamma": 0.8, "nu_area": 0.0, "nu_volume": 0.0, "converged": 1,
              "wall_time": 1.0, "box": BOX, "cutoff": 1e-6, "radius": 0.4,
              "reduced_volume": 0.8, "branch": "oblate"}
+    attrs.update(scene)
     checkpoint.write(path, nodes, phi, attrs)
     return checkpoint.read(path)
 

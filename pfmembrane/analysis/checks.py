@@ -5,8 +5,10 @@ import numpy as np
 from pfmembrane.analysis import levelset
 from pfmembrane.io import checkpoint
 
-# The topologies of phi_h = 0 that the checks give a level-set energy (the sharp-limit
-# estimate): several spheres, say, have none.
+# The topologies of phi_h = 0 of one component, whose level-set energy (the sharp-limit
+# estimate) continues a branch's: `branching.topology_lost` ends a branch past them. The others
+# (several spheres, a sphere and a torus) get the sum over their components
+# (`levelset.components_energy`), not put on the scene's constraints.
 ENERGETIC = ('1 sphere', '1 torus')
 
 
@@ -16,8 +18,10 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     ``genus``) and, for one sphere, the level set's own energy
     (`levelset.level_set_energy`) and, where the scene has a sharp-interface
     shape, the energy error and level-set distance against it, or for one
-    torus its own energy and radii (`levelset.loop_energy`), as attributes;
-    where no comparison was possible, why in ``sharp_note``.
+    torus its own energy and radii (`levelset.loop_energy`), or for any other
+    topology the sum of its components' energies (`levelset.components_energy`;
+    NaN with a piece through the box) and, for several, ``component_energies``,
+    as attributes; where no comparison was possible, why in ``sharp_note``.
     Rank 0 computes. `keep`, a dict, carries the basis's locality from one
     call to the next on the same nodes (a continuation's points)."""
     result = {}
@@ -35,6 +39,13 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
             if shape['label'] == '1 torus':   # no sharp torus to compare: its own energy
                 energy, radii = levelset.loop_energy(ckpt, curve[0], field_h)
                 result.update(level_set_energy=energy, torus_radii=np.asarray(radii))
+            elif shape['label'] != '1 sphere':  # several components: the sum of their own
+                energy, parts = levelset.components_energy(ckpt, curve, field_h)
+                result['level_set_energy'] = energy
+                if len(parts) > 1:
+                    result['component_energies'] = np.array([p.energy for p in parts])
+                raise ValueError(f"phi_h = 0 is {shape['label']}, the sharp shape one sphere: "
+                                 "no comparison across topologies")
             else:
                 try:
                     c = levelset.compare(ckpt, field=field_h, curve=curve)

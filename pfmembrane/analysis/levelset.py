@@ -42,7 +42,7 @@ BOUNDARY_TOL = 1e-3
 BOUNDARY_SAMPLES = 400
 
 __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "membrane", "level_set_energy",
-           "loop_energy", "distance",
+           "loop_energy", "Component", "components_energy", "distance",
            "compare", "Extrapolation", "extrapolate", "main"]
 
 # Attributes a checkpoint needs, beyond nodes and phi, for `compare`.
@@ -333,6 +333,149 @@ def loop_energy(ckpt, piece, field=None, modes=LOOP_MODES):
     ds = 0.5 * (seg + np.roll(seg, 1))  # trapezoid weights of the closed polyline
     energy = np.pi * float(attrs["k"]) * np.sum(r * h * h * ds)
     return float(energy), (0.5 * float(np.ptp(r)), 0.5 * float(r.max() + r.min()))
+
+
+class Component(NamedTuple):
+    """One surface of a level set (`components_energy`).
+
+    Attributes
+    ----------
+    kind : str
+        'sphere' (a piece from the axis to the axis), 'torus' (a closed
+        loop off the axis) or 'open' (a piece through the box).
+    orientation : int
+        +1 where phi_h > 0 lies inside the surface (a vesicle), -1 where it
+        lies outside (a hole of phi_h < 0 inside the vesicle, as the inner
+        sphere of a nested pair); 0 for an open piece.
+    energy : float
+        (k/2) int (H - C0)^2 dA of the surface, H the mean curvature for the
+        outward normal of phi_h > 0; NaN for an open piece.
+    """
+
+    kind: str
+    orientation: int
+    energy: float
+
+
+ORIENTATION_OFFSET = 0.5  # phi_h is sampled this many eps off a piece, either side
+
+
+def components_energy(ckpt, curve, field=None):
+    """Canham-Helfrich energy of a level set of any topology, component by component.
+
+    Not collective. The convention is `pfmembrane.sharp`'s: E = (k/2) int (H - C0)^2 dA
+    with H = (c1 + c2) / 2 the mean curvature for the outward normal of the region
+    phi_h > 0 (H = 1/R on a sphere of radius R holding phi_h > 0, so E = 2 pi k (1 - C0 R)^2),
+    summed over the components (`topology`). Unlike `level_set_energy`, no component is put on
+    the scene's area and volume (the scene constrains their sum): each is taken as it is, as
+    `loop_energy` takes a torus.
+
+    A component's orientation comes from phi_h itself: phi_h sampled `ORIENTATION_OFFSET` eps
+    off the piece on either side along its normal. Where phi_h > 0 lies outside the surface
+    (orientation -1, e.g. the inner sphere of a stomatocyte that has pinched off), the outward
+    normal of phi_h > 0 points into it and H has the opposite sign from a free surface's: its
+    energy is that of the surface with phi_h > 0 inside and C0 -> -C0. A sphere's energy is
+    the one of `pfmembrane.sharp.shape_energy`'s fitted curve (the tangent angle from
+    grad phi_h, as in `level_set_energy`), a torus's that of `loop_energy`.
+
+    Parameters
+    ----------
+    ckpt : pfmembrane.io.checkpoint.Checkpoint or alike
+        ``nodes``, ``phi`` and the attributes ``c0``, ``k``, ``eps``, ``box``, ``gamma``.
+    curve : list of ndarray
+        The level set of `ckpt` on the full box (`level_set`).
+    field : PhaseField, optional
+        phi_h of `ckpt`, if the caller has built it already.
+
+    Returns
+    -------
+    energy : float
+        The sum over the components; NaN if a piece is open or a component's energy is not
+        finite.
+    components : list of Component
+        In the order of `curve`.
+    """
+    attrs = ckpt.attrs
+    field = PhaseField(ckpt) if field is None else field
+    tol = _TOPOLOGY_TOL * np.max(np.asarray(attrs["box"], dtype=float))
+    delta = ORIENTATION_OFFSET * float(attrs["eps"])
+    c0, k = float(attrs["c0"]), float(attrs["k"])
+    components = []
+    for piece in curve:
+        kind = topology([piece], attrs["box"])
+        kind = 'sphere' if kind['spheres'] else 'torus' if kind['tori'] else 'open'
+        if kind == 'open':
+            components.append(Component(kind, 0, np.nan))
+            continue
+        if kind == 'sphere':  # bottom pole to top pole: counterclockwise
+            points = piece if piece[0, 1] < piece[-1, 1] else piece[::-1]
+        else:
+            points = piece[:-1] if np.hypot(*(piece[0] - piece[-1])) < tol else piece
+            r, z = points.T
+            if np.sum(r * np.roll(z, -1) - np.roll(r, -1) * z) < 0:
+                points = points[::-1]
+        orientation = _orientation(field, points, delta, closed=kind == 'torus')
+        if orientation == 0:
+            components.append(Component(kind, 0, np.nan))
+            continue
+        # phi_h > 0 outside: the surface with orientation * phi_h > 0 inside and C0 -> -C0.
+        oriented = field if orientation > 0 else _Negated(field)
+        if kind == 'sphere':
+            energy = _sphere_energy(points, oriented, orientation * c0, k)
+        else:
+            flipped = _Attrs(dict(attrs, c0=orientation * c0))
+            energy = loop_energy(flipped, points, oriented)[0]
+        components.append(Component(kind, orientation, float(energy)))
+    return float(sum(c.energy for c in components)), components
+
+
+def _orientation(field, points, delta, closed):
+    """+1 if phi_h is larger just inside the counterclockwise `points` (the surface's
+    side) than just outside, -1 if smaller, 0 if undecided."""
+    ends = np.vstack([points[-1:], points, points[:1]]) if closed else points
+    tangent = np.gradient(ends, axis=0)[1:-1] if closed else np.gradient(ends, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])  # outward, right of the tangent
+    normal /= np.maximum(np.hypot(*normal.T), np.finfo(float).tiny)[:, None]
+    # Off the axis, where the offset points stay in the half-plane.
+    far = points[:, 0] > 2.0 * delta
+    if np.count_nonzero(far) >= 3:
+        points, normal = points[far], normal[far]
+    difference = field(points - delta * normal) - field(points + delta * normal)
+    return int(np.sign(np.median(difference)))
+
+
+def _sphere_energy(points, field, c0, k):
+    """(k/2) int (H - c0)^2 dA of the counterclockwise piece from the axis to the axis,
+    `field` > 0 inside: the energy of `pfmembrane.sharp.shape_energy`'s fitted curve."""
+    _, grad = field(points, gradient=True)
+    if not np.all(np.isfinite(grad)):
+        return np.nan
+    psi = np.unwrap(np.arctan2(-grad[:, 0], grad[:, 1]))
+    psi -= 2.0 * np.pi * np.round(psi[0] / (2.0 * np.pi))
+    s = _arc_length(points)
+    # Its own area and volume: the projection `shape_energy` adds is not used.
+    area = 2.0 * np.pi * _trapezoid_weights(points) @ points[:, 0]
+    volume = enclosed_volume([points])
+    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], area, volume, c0, k)[1]
+
+
+class _Negated:
+    """-phi_h (and -grad phi_h) of a `PhaseField`."""
+
+    def __init__(self, field):
+        self.field = field
+
+    def __call__(self, points, gradient=False):
+        if not gradient:
+            return -self.field(points)
+        phi, grad = self.field(points, gradient=True)
+        return -phi, -grad
+
+
+class _Attrs(NamedTuple):
+    """A checkpoint stand-in with attributes only (for `loop_energy` with a field)."""
+
+    attrs: dict
 
 
 def _raster_contour(field, box, step):

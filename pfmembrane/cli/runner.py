@@ -188,7 +188,11 @@ def summary(res, output, print_fn):
         tube, centre = a['torus_radii']
         print_fn(f"level set: a torus of tube radius {tube:.4g} round r = {centre:.4g} "
                  f"(ratio {centre / tube:.4f}), its own energy {a['level_set_energy']:.6f}")
-    if 'sharp_energy' not in a and 'torus_radii' not in a and 'level_set_energy' in a:
+    if 'component_energies' in a:
+        parts = ' + '.join(f"{e:.6f}" for e in a['component_energies'])
+        print_fn(f"level set: its own energy {a['level_set_energy']:.6f}, the sum over its "
+                 f"{len(a['component_energies'])} components ({parts})")
+    elif 'sharp_energy' not in a and 'torus_radii' not in a and 'level_set_energy' in a:
         print_fn(f"level set: its own energy {a['level_set_energy']:.6f} (no sharp shape of "
                  "this scene to compare)")
     if 'sharp_energy' in a:
