@@ -1,9 +1,9 @@
 """Stage 1: augmented Lagrangian; stage 2: Newton on the bordered (Phi, nu) system.
 
-Convention (paper and MODEL.md): L = E - nu . (c - c0), c = (A, V, M), or
-c = (A, V) on a half box;
-the multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane
-tension, nu_V the pressure difference.
+Convention (the paper's, restated in the README's model section):
+L = E - nu . (c - c0), c = (A, V, M), or c = (A, V) on a half box; the
+multiplier update is nu <- nu - (c - c0) / mu. nu_A is the membrane tension,
+nu_V the pressure difference.
 """
 import ctypes
 import time
