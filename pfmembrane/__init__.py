@@ -17,7 +17,7 @@ import importlib
 _HOME = {'Scene': 'scene', 'Result': 'result', 'read': 'result', 'Grid': 'grid',
          'adapt': 'grid', 'solve': 'equilibrium', 'stability': 'equilibrium',
          'continuation': 'branching', 'tangent': 'branching', 'predict': 'branching',
-         'along': 'branching', 'petsc': 'api'}
+         'along': 'branching', 'accurate': 'accuracy', 'petsc': 'api'}
 __all__ = list(_HOME)
 
 

@@ -13,8 +13,10 @@ Where each name lives:
 - `Scene` (`scene`): the vesicle; `Result`, `read` (`result`): a solved state;
 - `Grid`, `adapt` (`grid`): nodes and their basis, built once; CVT-adapted grids;
 - `solve`, `stability` (`equilibrium`): an equilibrium and its azimuthal spectra;
-- `continuation`, `tangent`, `predict`, `along` (`branching`): branches.
+- `continuation`, `tangent`, `predict`, `along` (`branching`): branches;
+- `accurate` (`accuracy`): the sharp-limit energy to a tolerance, with an error bar.
 """
+from pfmembrane.accuracy import accurate
 from pfmembrane.branching import along, continuation, predict, tangent
 from pfmembrane.equilibrium import solve, stability
 from pfmembrane.grid import Grid, adapt
@@ -23,4 +25,4 @@ from pfmembrane.result import Result, read
 from pfmembrane.scene import Scene
 
 __all__ = ['Scene', 'Result', 'read', 'Grid', 'adapt', 'solve', 'stability', 'continuation',
-           'tangent', 'predict', 'along', 'petsc']
+           'tangent', 'predict', 'along', 'accurate', 'petsc']

@@ -41,7 +41,11 @@ def run(comm):
         # unused options are the unused-option check's to report (`__main__`)
         warnings.filterwarnings('ignore', 'solve options never used')
         warnings.filterwarnings('ignore', 'stability options never used')
-        res, output = runner.execute(p, comm, PETSc.Sys.Print, solve, modes_options=modes)
+        if p.tol:  # accuracy on demand: a sequence of solves (pfmembrane.accuracy)
+            from pfmembrane import accuracy
+            res, output = accuracy.execute(p, comm, PETSc.Sys.Print, solve)
+        else:
+            res, output = runner.execute(p, comm, PETSc.Sys.Print, solve, modes_options=modes)
     runner.summary(res, output, PETSc.Sys.Print)
     given, unused = opts.getAll(), {n.lower() for n in res.unused_options}
     for name in {**solve, **(modes or {})}:

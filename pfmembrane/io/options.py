@@ -91,6 +91,9 @@ class Params(Settings, Targets):
     spacing_floor: float = 0.0
     partition: str = 'bisection'
     modes: int = -1
+    tol: float = 0.0
+    tol_nodes: int = 200000
+    tol_time: float = 1800.0
 
 
 HELP = {
@@ -123,6 +126,11 @@ HELP = {
                  'a MatPartitioning type (ptscotch: graph, changes from run to run)',
     'modes': 'stability of the converged shape against psi(r,z) cos(m theta), m = 0..M: the '
              'index per m (-1: none; eigensolver options -modes_eps_...)',
+    'tol': 'accuracy on demand: solves from -pf_eps down in eps on grids that resolve it until '
+           'the sharp-limit estimate (the level set\'s energy) is within TOL relative by its '
+           'error bar (pfmembrane.accuracy; steps in <output stem>_tol/, resumed; 0: off)',
+    'tol_nodes': 'with -pf_tol: the most nodes of any grid (the budget)',
+    'tol_time': 'with -pf_tol: the wall seconds of the run (the budget)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
@@ -335,6 +343,15 @@ def validate(p):
     _require(0 <= p.spacing_smoothing <= 100, 'spacing_smoothing', 'in 0..100', p.spacing_smoothing)
     _require(0.0 <= p.spacing_floor < 1.0, 'spacing_floor', 'in [0, 1)', p.spacing_floor)
     _require(-1 <= p.modes <= 50, 'modes', 'in -1..50', p.modes)
+    _require(0.0 <= p.tol < 1.0, 'tol', 'in [0, 1)', p.tol)
+    _require(p.tol_nodes >= MIN_NODES, 'tol_nodes', f'>= {MIN_NODES}', p.tol_nodes)
+    _require(p.tol_time > 0, 'tol_time', '> 0', p.tol_time)
+    if p.tol and p.restart:
+        raise UsageError("-pf_tol starts from the scene, not -pf_restart: a rerun with the "
+                         "same -pf_output resumes from its steps (<output stem>_tol/)")
+    if p.tol and p.modes >= 0:
+        raise UsageError("-pf_modes with -pf_tol: analyse the checkpoint it writes instead "
+                         "(-pf_restart CKPT -pf_stage1 none -pf_modes M)")
     _require(p.partition in PARTITIONS, 'partition', f"one of {', '.join(PARTITIONS)}",
              p.partition)
     if p.nodes < MIN_NODES and not p.restart:

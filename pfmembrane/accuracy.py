@@ -1,0 +1,488 @@
+"""Accuracy on demand: the sharp-limit energy of a scene to a relative
+tolerance, by solves at decreasing eps on grids that resolve each eps, with an
+error bar (`accurate`; the command line's `-pf_tol`).
+
+The estimate is the level set's own energy (`Result.level_set_energy`: the
+Canham-Helfrich energy of phi_h = 0 put on the scene's area and volume, from
+`solve(..., checks=True)`), which approaches the sharp energy far faster than
+the phase-field energy (runs/limit/notes.md). The driver does by itself what
+the adaptive sequences of options/adapt/ do by hand:
+
+- **steps**: eps_k = eps0 ratio^k (eps0 by default R / 10, ratio 1/sqrt 2); each
+  step starts from the previous usable step's phi_h (its tanh profile rescaled
+  to the new eps), or from the scene's start after an unusable one;
+- **resolution**: every grid has `Grid.eps_min <= eps` (on uniform grids also
+  1.5 times the median spacing, `_lattice_resolves`): the previous grid when
+  it resolves eps, else a uniform grid of the box sized for eps (`Scene.sized`;
+  a fixed box stays) with spacing h = eps / 1.75 on the hexagonal lattice, about
+  Rb Zb / (sqrt3/2 h^2) nodes of the full box. Where that grid would exceed
+  `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the
+  previous result's nodes relocated by CVT (`grid.adapt`'s density
+  1 + f |grad phi_h| with a `band` of 2 eps: f 10, then 100, then 2, 4, ...
+  times the nodes with f 100; max-ent locality gamma at most 0.4 on them,
+  `ADAPT_GAMMA`), kept only when the relocation's eps_min (checked before the
+  basis is built) is <= eps. Uniform comes first by default because, measured
+  on 2 ranks, the graded grids cost more time and memory than the uniform
+  grids of the auto box they replace (the stomatocyte at eps 0.01: 7,313
+  adapted nodes 31.5 s, 12,782 uniform ones 20.8 s; gamma 0.4 widens the
+  supports): adaptivity saves nodes, not time;
+- **topology**: phi_h = 0 must be what the family is (one sphere; one torus for
+  the `torus` branch; `expect`). A step whose level set is another (a
+  stomatocyte's neck pinched, say) is under-resolved: it is no estimate, the
+  driver says "under-resolved: topology X at eps Y" and goes on at the next
+  eps from the scene's start on a uniform grid. A solve that does not converge
+  is no estimate either; after two in a row the driver stops;
+- **error bar**: from the last two estimates E_a, E_b at eps_a > eps_b (never
+  from one), r = eps_b / eps_a: bar = max(1, r / (1 - r)) |E_b - E_a|. If the
+  error of the estimate is e(eps) = C eps^p with p >= 1, then E_a - E_b =
+  C eps_a^p (1 - r^p) and e(eps_b) = |E_a - E_b| r^p / (1 - r^p) <=
+  |E_a - E_b| r / (1 - r): the bar covers the error of E_b whenever the error
+  falls at least linearly and monotonically in eps. Measured: in the paper's
+  box the discocyte's level set is +0.0226% at eps 0.04, +0.0010% at 0.01; in
+  the auto box (its bulk offset adds an eps^3 term) +0.287%, +0.066%, +0.016%,
+  +0.0039% at eps 0.04, 0.028, 0.02, 0.014, where the bar was 8, 7.6 and 7.4
+  times the true error (the dumbbell 5.6, the stomatocyte at v 0.6 4.2). With
+  ratio 1/sqrt 2 the factor is 2.41, with 1/2 it is 1. The grids
+  scale with eps (eps / h_min held by the resolution rule), so their
+  discretization error is part of e(eps). What it cannot defend: two estimates
+  that agree by chance where the error is not yet monotone (on uniform grids
+  at eps 0.05 ... 0.03 the discocyte's level set is +0.0026%, +0.023%,
+  +0.019%), which a smaller ratio or a smaller eps0 makes less likely;
+- **stop**: when bar <= tol |E_b| (tol_reached 1), or at the budget: a grid of
+  more than `max_nodes` nodes needed, or `max_time` seconds of this call spent
+  (or predicted to be, from the last step's time scaled as nodes^1.5), or two
+  failed solves in a row: then the best estimate is reported with
+  tol_reached 0 and "TOL not reached (why)". At least one step is solved.
+- **restart**: with `checkpoints` (a directory) every step's result is written
+  there as step<k>.h5, its attributes `tol_step`, `tol_usable`, `tol_note` and
+  the running `sharp_estimate`, `sharp_error`, `tol_reached`; a later call
+  with the same directory reads the steps found (a scene that differs is
+  refused) and goes on after the last, solving nothing when they already meet
+  tol. The time budget counts this call only.
+"""
+import math
+import os
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from pfmembrane.grid import RESOLUTION, Grid
+from pfmembrane.io import checkpoint
+from pfmembrane.io.options import Params, UsageError
+from pfmembrane.parallel import petsc
+from pfmembrane.result import Result, read
+
+# The uniform grid of a step: h = eps / H_RATIO on the hexagonal lattice (the paper's Table 1:
+# eps 0.04 on spacing 0.024), so that eps_min = 1.5 h_min is about 0.86 eps.
+H_RATIO = 1.75
+HEX = math.sqrt(3.0) / 2.0
+RATIO = 2.0 ** -0.5
+FIRST_EPS = 0.1          # eps0 in units of R (the paper's 0.04 at R = 0.4)
+MAX_NODES = 200000
+MAX_TIME = 1800.0
+ADAPT_F = (10.0, 100.0)  # CVT amplifications tried on the previous nodes, then twice as many
+BAND = 2.0               # the CVT band in units of the step's eps (runs/atlas/notes.md: W = 2 eps)
+# The largest max-ent locality on adapted grids: the paper's sequences take 0.5 and 0.4, the
+# adapted stomatocyte 0.4; with 0.8 its eps 0.01 step on a graded grid came out 0.86% high in E
+# with nu_V -2.03 against the sharp -3.71 (0.4: +0.088%, -3.76; uniform grid: +0.057%).
+ADAPT_GAMMA = 0.4
+MAX_FAILED = 2           # unconverged solves in a row that end the sequence
+EXPECTED = {'torus': '1 torus'}  # phi_h = 0 of each family; the others '1 sphere'
+SCENE_KEYS = ('reduced_volume', 'c0', 'radius', 'k', 'branch', 'symmetric')
+
+
+@dataclass
+class Step:
+    """One step of the sequence as the driver keeps it."""
+    eps: float
+    nodes: int
+    eps_min: float
+    estimate: float  # NaN when the step is no estimate
+    usable: bool
+    converged: bool
+    wall: float
+    adapt: float
+    note: str
+
+
+def uniform_nodes(box, eps):
+    """The node count of the full box's hexagonal lattice of spacing eps / H_RATIO."""
+    h = eps / H_RATIO
+    return int(math.ceil(box[0] * box[1] / (HEX * h * h)))
+
+
+def error_bar(steps):
+    """(estimate, bar): the last usable step's estimate and the bar from it and the
+    usable step before (module docstring); (NaN, NaN) without an estimate, bar NaN
+    with one."""
+    usable = [s for s in steps if s.usable]
+    if not usable:
+        return math.nan, math.nan
+    if len(usable) == 1:
+        return usable[-1].estimate, math.nan
+    a, b = usable[-2], usable[-1]
+    r = b.eps / a.eps
+    factor = max(1.0, r / (1.0 - r)) if r < 1.0 else math.inf
+    return b.estimate, factor * abs(b.estimate - a.estimate)
+
+
+def reached(steps, tol):
+    estimate, bar = error_bar(steps)
+    return bool(math.isfinite(bar) and bar <= tol * abs(estimate))
+
+
+def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=MAX_TIME,
+             checkpoints=None, adapt='auto', band=BAND, grid_options=None, options=None,
+             expect=None, comm=None, print_fn=None):
+    """The sharp-limit energy of `scene` to the relative tolerance `tol`: solves
+    at eps0, eps0 ratio, eps0 ratio^2, ... on grids that resolve each eps, until
+    the level set's own energy is within tol by its error bar or the budget is
+    spent (the module docstring says how the steps, grids, bar, topology check,
+    restart and budget work). Collective.
+
+    `scene.box` may be 'auto' (sized for each eps). `eps0` defaults to R / 10;
+    `max_nodes` bounds every grid, `max_time` (s) this call; `checkpoints` a
+    directory for the steps' results (step<k>.h5), which a later call resumes
+    from; `adapt` 'auto' adapts where a uniform grid would exceed max_nodes,
+    True before any new uniform grid, False never; `band` the CVT band in units
+    of eps; `grid_options` the `Grid` keywords (gamma, cutoff, ...),
+    `options` the solves' (as `solve`'s); `expect` the topology phi_h = 0 must
+    have ('1 sphere', or '1 torus' for the torus branch); `print_fn` a line per
+    step and the verdict (None: silent).
+
+    Returns the `Result` of the last usable step (of the last step when none
+    is), its attrs holding `sharp_estimate` (the estimate), `sharp_error` (the
+    bar, absolute, energy units; NaN with fewer than two estimates),
+    `tol_reached` (1/0), `tol`, `tol_stop` (why it stopped), per step
+    `tol_eps`, `tol_nodes`, `tol_estimates` (NaN: no estimate), and
+    `tol_wall_time` (this call, s) and `tol_steps_time` (the steps' walls,
+    earlier calls' included); the same in the checkpoint it saves to.
+    """
+    t0 = time.perf_counter()
+    if not (math.isfinite(tol) and 0.0 < tol < 1.0):
+        raise UsageError(f"-pf_tol must lie in (0, 1) (got {tol!r})")
+    if not 0.0 < ratio < 1.0:
+        raise ValueError(f"ratio must lie in (0, 1) (got {ratio!r})")
+    if adapt not in (True, False, 'auto'):
+        raise ValueError(f"adapt must be True, False or 'auto' (got {adapt!r})")
+    comm = petsc.comm(comm)
+    mpi = comm.tompi4py()
+    say = print_fn or (lambda *_: None)
+    expect = expect or EXPECTED.get(scene.branch, '1 sphere')
+    eps0 = float(eps0) if eps0 is not None else FIRST_EPS * scene.radius
+    params = dict(grid_options or {})
+    options = dict(options or {})
+
+    steps, results, prev = [], [], None
+    if checkpoints:
+        if mpi.Get_rank() == 0:
+            os.makedirs(checkpoints, exist_ok=True)
+        mpi.Barrier()
+        steps, prev = _resume(checkpoints, scene, mpi, say)
+    say(f"tol: {scene.branch} v={scene.reduced_volume:g} c0={scene.c0:g} R={scene.radius:g}: "
+        f"TOL {tol:g}, eps from {steps[-1].eps * ratio if steps else eps0:.4g} by "
+        f"{ratio:.4g}, budget {max_nodes} nodes, {max_time:g} s"
+        + (f", steps in {checkpoints}" if checkpoints else ''))
+    unused, stop = None, ''
+    while True:
+        if reached(steps, tol):
+            stop = 'TOL reached'
+            break
+        failed = 0
+        for s in reversed(steps):
+            if s.converged:
+                break
+            failed += 1
+        if failed >= MAX_FAILED:
+            stop = f"{failed} solves in a row did not converge"
+            break
+        k = len(steps)
+        eps = steps[-1].eps * ratio if steps else eps0
+        elapsed = mpi.allreduce(time.perf_counter() - t0, op=_max())
+        if steps and elapsed + steps[-1].wall > max_time:
+            stop = (f"time budget: {elapsed:.0f} s of {max_time:g} s spent, the last step "
+                    f"took {steps[-1].wall:.0f} s")
+            break
+        t_step = time.perf_counter()
+        plan = _plan(scene, eps, prev if prev is not None and steps[-1].usable else None,
+                     steps[-1] if steps else None, adapt, band, params, max_nodes, comm)
+        if isinstance(plan, str):
+            if not steps:
+                raise UsageError(f"-pf_tol_nodes {max_nodes}: the first step (eps {eps:g}) "
+                                 f"needs {plan}")
+            stop = (f"node budget: no grid of at most {max_nodes} nodes resolves eps {eps:.4g} "
+                    f"(a uniform one: {plan})")
+            break
+        step_scene, grid, start, how = plan
+        if steps:
+            last = steps[-1]
+            predicted = last.wall * (grid.n_nodes / max(last.nodes, 1)) ** 1.5
+            elapsed = mpi.allreduce(time.perf_counter() - t0, op=_max())
+            if elapsed + predicted > max_time:
+                stop = (f"time budget: the next step (eps {eps:.4g}, {grid.n_nodes} nodes) "
+                        f"would end near {elapsed + predicted:.0f} s > {max_time:g} s")
+                break
+        res = solve(step_scene, grid, eps, start=start, options=options, checks=True)
+        unused = set(res.unused_options) if unused is None else unused & set(res.unused_options)
+        topology = res.topology
+        estimate = res.level_set_energy
+        note = ''
+        if not res.converged:
+            note = f"not converged: {res.message}"
+        elif topology != expect:
+            note = f"under-resolved: topology {topology or 'none'} at eps {eps:g}"
+        elif not math.isfinite(estimate):
+            note = f"no level-set energy at eps {eps:g}"
+        usable = not note
+        wall = mpi.allreduce(time.perf_counter() - t_step, op=_max())
+        f = (grid.adapt_info['f'] if grid.adapt_info else
+             steps[-1].adapt if how == 'previous grid' else 0.0)
+        resolves = (steps[-1].eps_min if how == 'previous grid' else
+                    grid.eps_min if grid.adapt_info else _lattice_resolves(grid))
+        steps.append(Step(eps, grid.n_nodes, resolves, estimate if usable else math.nan,
+                          usable, res.converged, wall, f, note))
+        value, bar = error_bar(steps)
+        res.attrs.update(wall_time=wall, tol_step=k, tol_usable=int(usable), tol_note=note,
+                         tol_adapt=f, tol_resolves=resolves,
+                         tol_grid=how, sharp_estimate=value, sharp_error=bar,
+                         tol_reached=int(reached(steps, tol)))
+        results.append(res)
+        prev = res
+        if checkpoints:
+            res.save(_step_path(checkpoints, k))
+        say(f"tol step {k}: eps {eps:.4g}, {how}, {grid.n_nodes} nodes (resolves eps >= "
+            f"{resolves:.4g}): E {res.energy:.6f}, level set {estimate:.6f}, "
+            f"{topology or 'no level set'}; " + (
+                f"estimate {value:.6f} +- {bar:.2e} ({bar / abs(value):.2e} relative)"
+                if math.isfinite(bar) else
+                (f"estimate {value:.6f} (no bar from one estimate)" if usable else note))
+            + f"; {wall:.1f} s" + (f" -> {_step_path(checkpoints, k)}" if checkpoints else ''))
+        if not usable and res.converged and topology != expect:
+            say(f"{note} (expected {expect}): not an estimate; eps reduced")
+        elif not usable:
+            say(f"tol step {k}: {note}: not an estimate")
+    final = _final(steps, results, prev, checkpoints, mpi)
+    if final is None:  # nothing solved and nothing found: cannot happen (one step at least)
+        raise RuntimeError("no step solved")
+    value, bar = error_bar(steps)
+    done = reached(steps, tol)
+    wall = mpi.allreduce(time.perf_counter() - t0, op=_max())
+    final.attrs.update(
+        sharp_estimate=value, sharp_error=bar, tol_reached=int(done), tol=tol,
+        tol_ratio=ratio, tol_stop=stop, tol_eps=np.array([s.eps for s in steps]),
+        tol_nodes=np.array([s.nodes for s in steps]),
+        tol_estimates=np.array([s.estimate for s in steps]),
+        tol_wall_time=wall, tol_steps_time=float(sum(s.wall for s in steps)))
+    final.unused_options = sorted(unused or ())
+    relative = bar / abs(value) if math.isfinite(bar) and value else math.nan
+    say(f"tol: sharp-limit estimate {value:.6f} "
+        + (f"+- {bar:.2e} ({relative:.2e} relative, TOL {tol:g})" if math.isfinite(bar) else
+           f"without an error bar ({'one estimate' if math.isfinite(value) else 'none'}, "
+           f"TOL {tol:g})")
+        + ": " + ("TOL reached" if done else f"TOL not reached ({stop})"))
+    say(f"tol: eps {' '.join(format(s.eps, '.4g') for s in steps)}; nodes "
+        f"{' '.join(str(s.nodes) for s in steps)}; {wall:.1f} s "
+        f"(steps {sum(s.wall for s in steps):.1f} s)")
+    return final
+
+
+def solve(scene, grid, eps, start=None, options=None, checks=False):
+    """`equilibrium.solve` (a name of this module, for the tests to count the solves)."""
+    from pfmembrane.equilibrium import solve as solve_
+    return solve_(scene, grid, eps, start=start, options=options, checks=checks)
+
+
+def _max():
+    from mpi4py import MPI
+    return MPI.MAX
+
+
+def _step_path(directory, k):
+    return os.path.join(directory, f"step{k}.h5")
+
+
+def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
+    """(scene on the grid's box, grid, start, how) for a step at `eps` after the usable
+    result `prev` (None: a fresh start), or a string (the node count needed) when every
+    grid that resolves eps exceeds `max_nodes`."""
+    half = 2 if scene.symmetric else 1
+    sized = scene.sized(eps)
+    count = uniform_nodes(sized.box, eps)
+    if prev is not None:
+        on_box = replace(scene, box=tuple(float(b) for b in prev.attrs['box']))
+        if last.eps_min <= eps:   # the previous grid resolves eps: the same basis
+            grid = prev.grid if prev.grid is not None and prev.grid.fits(on_box) else \
+                Grid.of(prev, comm=comm, **{k: v for k, v in params.items() if k == 'partition'})
+            return on_box, grid, prev, 'previous grid'
+        if adapt is True or (adapt == 'auto' and count // half > max_nodes):
+            ceiling = max_nodes if adapt == 'auto' else min(max_nodes, count // half - 1)
+            found = _adapted(on_box, prev, last.adapt, eps, band, ceiling, params, comm)
+            if found is not None:
+                return (on_box, *found)
+    if count // half > max_nodes:
+        return f"{count // half} nodes"
+    grid = Grid.uniform(sized, count, comm=comm, **params)
+    if _lattice_resolves(grid) > eps:  # the lattice rounded coarse: once more, finer
+        count = int(count * (_lattice_resolves(grid) / eps) ** 2 * 1.05) + 1
+        if count // half > max_nodes:
+            return f"{count // half} nodes"
+        grid = Grid.uniform(sized, count, comm=comm, **params)
+    start = _moved(prev, sized) if prev is not None else None
+    return sized, grid, start, f"uniform {sized.box[0]:g}x{sized.box[1]:g}"
+
+
+def _lattice_resolves(grid):
+    """The smallest eps a uniform grid resolves: the larger of its `eps_min` and
+    RESOLUTION times the median nodal spacing. On some lattices the column squeezed
+    against r = Rb forms the left peak of the spacings that `eps_min` reads (the
+    auto box 0.8 x 1.01 with 1,584 nodes: eps_min 0.0278, the lattice's 0.0374), a
+    resolution the membrane, away from that edge, does not have."""
+    return max(grid.eps_min, RESOLUTION * float(np.median(grid.discrete.h)))
+
+
+def _moved(prev, scene):
+    """`prev` as a start in `scene`'s box: its nodes shifted in z so that the vesicle
+    stays at the middle height Zb / 2 of the new box (the moment constraint's)."""
+    old = tuple(float(b) for b in prev.attrs['box'])
+    if np.allclose(old, scene.box, rtol=0, atol=1e-12):
+        return prev
+    shift = 0.5 * (scene.box[1] - old[1])
+    return Result(prev.nodes + np.array([0.0, shift]), prev.phi,
+                  {**prev.attrs, 'box': np.asarray(scene.box)}, path=prev.path)
+
+
+def _adapted(scene, prev, f_prev, eps, band, ceiling, params, comm):
+    """(grid, start, how): the first CVT relocation that resolves `eps` (`ADAPT_F` above
+    the previous grid's `f_prev` on prev's nodes, then 2, 4, ... times as many nodes with
+    the largest f, at most `ceiling`), or None."""
+    n = len(prev.nodes)
+    tries = [(n, f) for f in ADAPT_F if f > f_prev and n <= ceiling]
+    grown = 2 * n
+    while grown <= ceiling:
+        tries.append((grown, ADAPT_F[-1]))
+        grown *= 2
+    for count, f in tries:
+        found = _relocated(scene, prev, eps, f, band * eps, count, params, comm)
+        if found is not None:
+            grid, start = found
+            return grid, start, (f"CVT f={f:g} band={band * eps:.3g} "
+                                 f"gamma={grid.params['gamma']:g} of step "
+                                 f"{prev.attrs.get('tol_step', '?')}")
+    return None
+
+
+def _relocated(scene, prev, eps, f, band, count, params, comm):
+    """(grid, start): the CVT relocation of `prev`'s nodes (of `count` uniform nodes
+    with prev's phi_h when count exceeds prev's) for the density 1 + f |grad phi_h|,
+    as `grid.adapt` makes it, or None when its eps_min exceeds `eps` (checked before
+    the basis is built)."""
+    from pfmembrane.kernels import nodes as nodesets
+    from pfmembrane.kernels.adapt import transfer
+    from pfmembrane.parallel.adapt import relocate
+    plane, box = scene.plane, scene.box
+    source = prev
+    if count > len(prev.nodes):
+        xy = nodesets.uniform(box, count * (2 if scene.symmetric else 1), half=scene.symmetric)
+        phi = transfer(prev.nodes, prev.phi, prev.locality(plane), prev.basis['cutoff'],
+                       xy, box, plane)
+        source = Result(xy, phi, {**prev.attrs, 'n_nodes': len(xy)}, path=prev.path)
+    xy, phi, info = relocate(comm.tompi4py(), source.nodes, source.phi, box,
+                             source.locality(plane), source.basis['cutoff'], f, plane,
+                             None, band)
+    if RESOLUTION * info['h_min'][1] > eps:
+        return None
+    gamma = min(params.get('gamma', Params.gamma), ADAPT_GAMMA)
+    grid = Grid(scene, xy, comm=comm, **{**params, 'gamma': gamma})
+    if grid.eps_min > eps:
+        return None
+    info['of'] = prev.path or 'the previous step'
+    grid.adapt_info, grid.transferred = info, (source, phi)
+    return grid, source
+
+
+def _resume(directory, scene, mpi, say):
+    """The steps found in `directory` (step0.h5, step1.h5, ... up to the first missing
+    or unreadable one) and the last one's result."""
+    steps, last = [], None
+    while os.path.exists(_step_path(directory, len(steps))):
+        path = _step_path(directory, len(steps))
+        try:
+            res = read(path, mpi)
+        except checkpoint.CheckpointError:
+            say(f"tol: {path} unreadable: solved again")
+            break
+        a = res.attrs
+        theirs = res.scene
+        differs = [key for key in SCENE_KEYS if getattr(theirs, key) != getattr(scene, key)]
+        if differs or int(a.get('tol_step', -1)) != len(steps):
+            raise UsageError(
+                f"{path} is not a step of this scene ({', '.join(differs) or 'tol_step'} "
+                "differs): give another -pf_output or remove that directory")
+        usable = bool(a.get('tol_usable', 0))
+        steps.append(Step(float(a['eps']), len(res.nodes),
+                          float(a.get('tol_resolves', a['eps_min'])),
+                          float(a['level_set_energy']) if usable else math.nan, usable,
+                          bool(a['converged']), float(a['wall_time']),
+                          float(a.get('tol_adapt', 0.0)), str(a.get('tol_note', ''))))
+        last = res
+    if steps:
+        say(f"tol: resuming after step {len(steps) - 1} found in {directory}")
+    return steps, last
+
+
+def _final(steps, results, prev, directory, mpi):
+    """The result of the last usable step (of the last step when none is): in memory
+    when this call solved it, else read back from its checkpoint."""
+    usable = [k for k, s in enumerate(steps) if s.usable]
+    k = usable[-1] if usable else len(steps) - 1
+    first = len(steps) - len(results)  # the steps this call solved
+    if k >= first:
+        return results[k - first]
+    if k == len(steps) - 1 and prev is not None:
+        return prev
+    return read(_step_path(directory, k), mpi)
+
+
+def save(result, path, comm=None):
+    """Write `result` collectively: with its grid's communicator, or `comm` for a
+    result read back (no grid), rank 0 writing."""
+    if result.grid is not None:
+        return result.save(path)
+    mpi = petsc.comm(comm).tompi4py()
+    checkpoint.write(path, result.nodes, result.phi, result.attrs, comm=mpi,
+                     datasets={k: v for k, v in result.datasets.items() if k != 'triangles'},
+                     triangles=result.datasets.get('triangles'))
+    result.path = str(path)
+    return result
+
+
+def steps_directory(output):
+    """The directory of a command-line run's steps: `<output stem>_tol`."""
+    return os.path.splitext(output)[0] + '_tol'
+
+
+def execute(p, comm, print_fn, solve_options=None):
+    """The command line's `-pf_tol` run of the options `p` (`io.options.Params`):
+    `accurate` from -pf_eps, with the steps in `<output stem>_tol/`, and the final
+    result written to -pf_output. Collective. Returns (result, checkpoint path)."""
+    from pfmembrane.scene import Scene
+    from pfmembrane.io import options as opts
+    output = p.output or opts.default_output(p)
+    scene = Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
+    grid_options = dict(gamma=p.gamma, cutoff=p.cutoff, quad_degree=p.quad_degree,
+                        spacing_smoothing=p.spacing_smoothing, spacing_floor=p.spacing_floor,
+                        partition=p.partition)
+    res = accurate(scene, p.tol, eps0=p.eps, max_nodes=p.tol_nodes, max_time=p.tol_time,
+                   checkpoints=steps_directory(output), grid_options=grid_options,
+                   options={**(solve_options or {}), 'pf_summary': True}, comm=comm,
+                   print_fn=print_fn)
+    if not res.converged and not res.status:  # a step read back that did not converge
+        res.status = 1
+    stage = petsc.start().Log.Stage('pfCheckpoint')
+    stage.push()
+    try:
+        save(res, output, comm)
+    finally:
+        stage.pop()
+    return res, output
