@@ -11,6 +11,13 @@ the adaptive sequences of options/adapt/ do by hand:
 - **steps**: eps_k = eps0 ratio^k (eps0 by default R / 10, ratio 1/sqrt 2); each
   step starts from the previous usable step's phi_h (its tanh profile rescaled
   to the new eps), or from the scene's start after an unusable one;
+- **resolution follows the shape**: where the family starts from its sharp shape
+  (the stomatocyte), eps0 is at most FRACTION times that curve's smallest
+  feature (`levelset.smallest_feature`: a neck, the gap between two membranes,
+  a torus's hole; `first_eps`), and after every usable step the feature of its
+  phi_h = 0 is measured (`tol_feature`). After an under-resolved step the next
+  eps is FRACTION times the feature of the last usable level set (else of the
+  sharp start) where that is below one ratio step;
 - **resolution**: every grid has `Grid.eps_min <= eps` (on uniform grids also
   1.5 times the median spacing, `_lattice_resolves`): the previous grid when
   it resolves eps, else a uniform grid of the box sized for eps (`Scene.sized`;
@@ -29,8 +36,9 @@ the adaptive sequences of options/adapt/ do by hand:
 - **topology**: phi_h = 0 must be what the family is (one sphere; one torus for
   the `torus` branch; `expect`). A step whose level set is another (a
   stomatocyte's neck pinched, say) is under-resolved: it is no estimate, the
-  driver says "under-resolved: topology X at eps Y" and goes on at the next
-  eps from the scene's start on a uniform grid. A solve that does not converge
+  driver says "under-resolved: topology X at eps Y (smallest feature: neck
+  0.0991)" and goes on at the next eps (above) from the scene's start on a
+  uniform grid. A solve that does not converge
   is no estimate either; after two in a row the driver stops;
 - **error bar**: from the last two estimates E_a, E_b at eps_a > eps_b (never
   from one), r = eps_b / eps_a: bar = max(1, r / (1 - r)) |E_b - E_a|. If the
@@ -87,6 +95,13 @@ BAND = 2.0               # the CVT band in units of the step's eps (runs/atlas/n
 # adapted stomatocyte 0.4; with 0.8 its eps 0.01 step on a graded grid came out 0.86% high in E
 # with nu_V -2.03 against the sharp -3.71 (0.4: +0.088%, -3.76; uniform grid: +0.057%).
 ADAPT_GAMMA = 0.4
+# eps0 <= FRACTION x the smallest feature of the sharp start, and after an under-resolved step
+# eps <= FRACTION x that of the last usable level set. Measured on 2 ranks: the stomatocyte at
+# v 0.6 (R 0.4) has a sharp neck of width 2 r = 0.0991 (its membranes' gap 0.138); its phi_h = 0
+# was one sphere at eps 0.0141 and 0.01 (0.142 and 0.101 of the neck) and pinched ("2 spheres",
+# "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and more). 1/8 puts eps0 at 0.0124, 12%
+# under the largest eps that resolved, 38% under the one that pinched.
+FRACTION = 0.125
 MAX_FAILED = 2           # unconverged solves in a row that end the sequence
 EXPECTED = {'torus': '1 torus'}  # phi_h = 0 of each family; the others '1 sphere'
 SCENE_KEYS = ('reduced_volume', 'c0', 'radius', 'k', 'branch', 'symmetric')
@@ -104,12 +119,79 @@ class Step:
     wall: float
     adapt: float
     note: str
+    feature: float = math.nan  # the smallest feature of its phi_h = 0 (NaN: not measured)
+    feature_kind: str = ''
 
 
 def uniform_nodes(box, eps):
     """The node count of the full box's hexagonal lattice of spacing eps / H_RATIO."""
     h = eps / H_RATIO
     return int(math.ceil(box[0] * box[1] / (HEX * h * h)))
+
+
+def sharp_feature(scene):
+    """The smallest feature (`levelset.Feature`) of the scene's sharp start, where its
+    family starts from one (the stomatocyte: `starts.sharp_shape`), else None (the
+    spheroids and the torus: no narrow feature to resolve first). Not collective."""
+    from pfmembrane.io.options import start_kind
+    if start_kind(scene.branch) != 'sharp':
+        return None
+    from pfmembrane import starts
+    from pfmembrane.analysis.levelset import smallest_feature
+    try:
+        shape = starts.sharp_shape(scene)
+    except UsageError:
+        return None
+    return smallest_feature((np.asarray(shape.r), np.asarray(shape.z)))
+
+
+def first_eps(scene, eps0=None, fraction=FRACTION):
+    """(eps0, feature): the first step's eps, min(eps0, fraction x the smallest feature
+    of the scene's sharp start), eps0 by default R / 10, and that feature (None where
+    the family has no sharp start: eps0 as given). Not collective; no solve."""
+    eps0 = float(eps0) if eps0 is not None else FIRST_EPS * scene.radius
+    feature = sharp_feature(scene)
+    if feature is not None and math.isfinite(feature.size) and feature.size > 0:
+        eps0 = min(eps0, fraction * feature.size)
+    return eps0, feature
+
+
+def next_eps(steps, ratio, eps0, sharp=None, fraction=FRACTION):
+    """(eps, feature): the next step's eps after `steps`: eps0 first, then one ratio
+    step, or after an under-resolved step (a topology other than the family's)
+    fraction x the feature of the last usable level set (else of the `sharp` start)
+    where that is smaller; and that feature as (size, kind), None if unknown."""
+    if not steps:
+        return eps0, None
+    eps = steps[-1].eps * ratio
+    feature = _reference_feature(steps, sharp)
+    if steps[-1].note.startswith('under-resolved') and feature is not None:
+        eps = min(eps, fraction * feature[0])
+    return eps, feature
+
+
+def _reference_feature(steps, sharp):
+    """(size, kind) of the last usable step's level-set feature, else of the sharp start."""
+    for s in reversed(steps):
+        if s.usable and math.isfinite(s.feature):
+            return s.feature, s.feature_kind or 'feature'
+    if sharp is not None:
+        return sharp.size, f"{sharp.kind} of the sharp start"
+    return None
+
+
+def level_set_feature(res, mpi):
+    """(size, kind) of the smallest feature (`levelset.smallest_feature`) of `res`'s
+    phi_h = 0 on the full box, or None where it has none. Collective: rank 0 computes."""
+    found = None
+    if mpi.Get_rank() == 0:
+        from pfmembrane.analysis import levelset
+        try:
+            found = levelset.smallest_feature(levelset.level_set(res.checkpoint().unfolded()))
+            found = (found.size, found.kind)
+        except (ValueError, RuntimeError):
+            found = None
+    return mpi.bcast(found, root=0)
 
 
 def error_bar(steps):
@@ -141,7 +223,9 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     spent (the module docstring says how the steps, grids, bar, topology check,
     restart and budget work). Collective.
 
-    `scene.box` may be 'auto' (sized for each eps). `eps0` defaults to R / 10;
+    `scene.box` may be 'auto' (sized for each eps). `eps0` defaults to R / 10,
+    and is lowered to FRACTION x the smallest feature of the sharp start where
+    the family has one (`first_eps`);
     `max_nodes` bounds every grid, `max_time` (s) this call; `checkpoints` a
     directory for the steps' results (step<k>.h5), which a later call resumes
     from; `adapt` 'auto' adapts where a uniform grid would exceed max_nodes,
@@ -155,9 +239,11 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     is), its attrs holding `sharp_estimate` (the estimate), `sharp_error` (the
     bar, absolute, energy units; NaN with fewer than two estimates),
     `tol_reached` (1/0), `tol`, `tol_stop` (why it stopped), per step
-    `tol_eps`, `tol_nodes`, `tol_estimates` (NaN: no estimate), and
+    `tol_eps`, `tol_nodes`, `tol_estimates` (NaN: no estimate), `tol_features`
+    (the smallest feature of each step's phi_h = 0; NaN: unusable), and
     `tol_wall_time` (this call, s) and `tol_steps_time` (the steps' walls,
-    earlier calls' included); the same in the checkpoint it saves to.
+    earlier calls' included); the same in the checkpoint it saves to. Every
+    step's result and checkpoint holds `tol_feature` and `tol_feature_kind`.
     """
     t0 = time.perf_counter()
     if not (math.isfinite(tol) and 0.0 < tol < 1.0):
@@ -170,7 +256,8 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     mpi = comm.tompi4py()
     say = print_fn or (lambda *_: None)
     expect = expect or EXPECTED.get(scene.branch, '1 sphere')
-    eps0 = float(eps0) if eps0 is not None else FIRST_EPS * scene.radius
+    given = float(eps0) if eps0 is not None else FIRST_EPS * scene.radius
+    eps0, sharp = first_eps(scene, given)
     params = dict(grid_options or {})
     options = dict(options or {})
 
@@ -181,8 +268,10 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         mpi.Barrier()
         steps, prev = _resume(checkpoints, scene, mpi, say)
     say(f"tol: {scene.branch} v={scene.reduced_volume:g} c0={scene.c0:g} R={scene.radius:g}: "
-        f"TOL {tol:g}, eps from {steps[-1].eps * ratio if steps else eps0:.4g} by "
-        f"{ratio:.4g}, budget {max_nodes} nodes, {max_time:g} s"
+        f"TOL {tol:g}, eps from {next_eps(steps, ratio, eps0, sharp)[0]:.4g}"
+        + (f" ({FRACTION:g} x the sharp start's {sharp.kind} {sharp.size:.3g}, under "
+           f"{given:g})" if not steps and eps0 < given else '')
+        + f" by {ratio:.4g}, budget {max_nodes} nodes, {max_time:g} s"
         + (f", steps in {checkpoints}" if checkpoints else ''))
     unused, stop = None, ''
     while True:
@@ -198,7 +287,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             stop = f"{failed} solves in a row did not converge"
             break
         k = len(steps)
-        eps = steps[-1].eps * ratio if steps else eps0
+        eps, reference = next_eps(steps, ratio, eps0, sharp)
         elapsed = mpi.allreduce(time.perf_counter() - t0, op=_max())
         if steps and elapsed + steps[-1].wall > max_time:
             stop = (f"time budget: {elapsed:.0f} s of {max_time:g} s spent, the last step "
@@ -231,21 +320,26 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         if not res.converged:
             note = f"not converged: {res.message}"
         elif topology != expect:
-            note = f"under-resolved: topology {topology or 'none'} at eps {eps:g}"
+            note = f"under-resolved: topology {topology or 'none'} at eps {eps:g}" + (
+                f" (smallest feature: {reference[1]} {reference[0]:.3g})"
+                if reference is not None else '')
         elif not math.isfinite(estimate):
             note = f"no level-set energy at eps {eps:g}"
         usable = not note
+        feature = level_set_feature(res, mpi) if usable else None
         wall = mpi.allreduce(time.perf_counter() - t_step, op=_max())
         f = (grid.adapt_info['f'] if grid.adapt_info else
              steps[-1].adapt if how == 'previous grid' else 0.0)
         resolves = (steps[-1].eps_min if how == 'previous grid' else
                     grid.eps_min if grid.adapt_info else _lattice_resolves(grid))
         steps.append(Step(eps, grid.n_nodes, resolves, estimate if usable else math.nan,
-                          usable, res.converged, wall, f, note))
+                          usable, res.converged, wall, f, note,
+                          *(feature if feature else (math.nan, ''))))
         value, bar = error_bar(steps)
         res.attrs.update(wall_time=wall, tol_step=k, tol_usable=int(usable), tol_note=note,
                          tol_adapt=f, tol_resolves=resolves,
                          tol_grid=how, sharp_estimate=value, sharp_error=bar,
+                         tol_feature=steps[-1].feature, tol_feature_kind=steps[-1].feature_kind,
                          tol_reached=int(reached(steps, tol)))
         results.append(res)
         prev = res
@@ -253,7 +347,8 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             res.save(_step_path(checkpoints, k))
         say(f"tol step {k}: eps {eps:.4g}, {how}, {grid.n_nodes} nodes (resolves eps >= "
             f"{resolves:.4g}): E {res.energy:.6f}, level set {estimate:.6f}, "
-            f"{topology or 'no level set'}; " + (
+            f"{topology or 'no level set'}"
+            + (f", smallest feature {feature[1]} {feature[0]:.3g}" if feature else '') + "; " + (
                 f"estimate {value:.6f} +- {bar:.2e} ({bar / abs(value):.2e} relative)"
                 if math.isfinite(bar) else
                 (f"estimate {value:.6f} (no bar from one estimate)" if usable else note))
@@ -273,6 +368,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         tol_ratio=ratio, tol_stop=stop, tol_eps=np.array([s.eps for s in steps]),
         tol_nodes=np.array([s.nodes for s in steps]),
         tol_estimates=np.array([s.estimate for s in steps]),
+        tol_features=np.array([s.feature for s in steps]),
         tol_wall_time=wall, tol_steps_time=float(sum(s.wall for s in steps)))
     final.unused_options = sorted(unused or ())
     relative = bar / abs(value) if math.isfinite(bar) and value else math.nan
@@ -424,7 +520,9 @@ def _resume(directory, scene, mpi, say):
                           float(a.get('tol_resolves', a['eps_min'])),
                           float(a['level_set_energy']) if usable else math.nan, usable,
                           bool(a['converged']), float(a['wall_time']),
-                          float(a.get('tol_adapt', 0.0)), str(a.get('tol_note', ''))))
+                          float(a.get('tol_adapt', 0.0)), str(a.get('tol_note', '')),
+                          float(a.get('tol_feature', math.nan)),
+                          str(a.get('tol_feature_kind', ''))))
         last = res
     if steps:
         say(f"tol: resuming after step {len(steps) - 1} found in {directory}")

@@ -162,3 +162,36 @@ def test_the_command_line_writes_the_estimate(pfm, tmp_path):
     assert a['sharp_error'] <= TOL * a['sharp_estimate']
     assert (tmp_path / 'disc_tol' / 'step0.h5').exists()
     assert (tmp_path / 'disc_tol' / 'step1.h5').exists()
+
+
+def test_the_first_eps_follows_the_sharp_start_s_smallest_feature(monkeypatch):
+    monkeypatch.setattr(accuracy, 'solve', None)  # no solve
+    # the stomatocyte at v 0.6: its sharp neck 2 r = 0.0991 puts eps0 at 0.0124, under the
+    # 0.0141 that resolved it (0.02 pinched it)
+    stomatocyte = pf.Scene(branch='stomatocyte', reduced_volume=0.6, box='auto')
+    eps0, feature = accuracy.first_eps(stomatocyte, 0.04)
+    assert feature.kind == 'neck' and feature.size == pytest.approx(0.0991, abs=5e-4)
+    assert eps0 == pytest.approx(accuracy.FRACTION * feature.size) and 0.011 < eps0 < 0.0141
+    assert accuracy.first_eps(stomatocyte, 0.01)[0] == 0.01  # a smaller eps0 stays
+    assert accuracy.first_eps(stomatocyte)[0] == eps0        # R / 10 = 0.04 by default
+    # the spheroids have no sharp start: eps0 as given
+    assert accuracy.first_eps(pf.Scene(box='auto'), 0.06) == (0.06, None)
+    assert accuracy.first_eps(pf.Scene(branch='prolate', box='auto'))[0] == pytest.approx(0.04)
+
+
+def test_an_under_resolved_step_jumps_to_the_feature():
+    sharp = accuracy.first_eps(pf.Scene(branch='stomatocyte', reduced_volume=0.6,
+                                        box='auto'))[1]
+    pinched = accuracy.Step(0.04, 1000, 0.03, math.nan, False, True, 1.0, 0.0,
+                            'under-resolved: topology 2 spheres at eps 0.04')
+    eps, reference = accuracy.next_eps([pinched], 2 ** -0.5, 0.04, sharp)
+    assert eps == pytest.approx(accuracy.FRACTION * sharp.size) and 'neck' in reference[1]
+    # the last usable level set's feature comes first; one ratio step where that is smaller
+    usable = accuracy.Step(0.03, 1000, 0.025, 12.5, True, True, 1.0, 0.0, '', 0.08, 'gap')
+    assert accuracy.next_eps([usable, pinched], 0.5, 0.04, sharp) == \
+        (pytest.approx(0.01), (0.08, 'gap'))
+    assert accuracy.next_eps([usable, pinched], 0.2, 0.04, sharp)[0] == pytest.approx(0.008)
+    # after a usable step, or without any feature known: one ratio step
+    assert accuracy.next_eps([usable], 0.5, 0.04, sharp)[0] == pytest.approx(0.015)
+    assert accuracy.next_eps([pinched], 0.5, 0.04, None) == (pytest.approx(0.02), None)
+    assert accuracy.next_eps([], 0.5, 0.04, sharp) == (0.04, None)

@@ -43,6 +43,7 @@ BOUNDARY_SAMPLES = 400
 
 __all__ = ["SCENE_ATTRS", "reference", "PhaseField", "level_set", "membrane", "level_set_energy",
            "loop_energy", "Component", "components_energy", "distance",
+           "Feature", "smallest_feature",
            "compare", "Extrapolation", "extrapolate", "main"]
 
 # Attributes a checkpoint needs, beyond nodes and phi, for `compare`.
@@ -232,6 +233,148 @@ def topology(curve, box):
     counts['label'] = ' + '.join(f"{n} {one if n == 1 else many}"
                                  for n, one, many in names if n) or 'none'
     return counts
+
+
+# `smallest_feature`: two points of a curve are a gap's when they lie more than GAP_ARC times
+# their distance apart along it (neighbours along the curve are never), and a local minimum
+# of r is a neck when r rises on both sides by NECK_RISE of it (or of the curve's extent
+# times 1e-3) before it falls below it again (scipy's prominence).
+GAP_ARC = 3.0
+NECK_RISE = 0.05
+FEATURE_SAMPLES = 1000
+
+
+class Feature(NamedTuple):
+    """The smallest feature of a meridian curve (`smallest_feature`).
+
+    Attributes
+    ----------
+    size : float
+        Its width, in the units of the curve.
+    kind : str
+        'neck' (twice a local minimum of r along a piece), 'gap' (the distance
+        between two points far apart along the curve), 'hole' (twice the
+        smallest r of a closed loop off the axis: a torus's hole), or, where
+        the curve has none of those narrower, 'diameter' (a piece from the axis
+        to the axis: the smaller of 2 max r and its height) or 'tube' (a loop:
+        the smaller of its width and height).
+    where : ndarray, shape (2,)
+        (r, z) of it: the neck's or the hole's point of the curve, the middle
+        of a gap's two points, the middle of a piece's bounding box.
+    """
+
+    size: float
+    kind: str
+    where: np.ndarray
+
+
+def smallest_feature(curve, samples=FEATURE_SAMPLES, gap_arc=GAP_ARC):
+    """The narrowest thing of a meridian curve that an interface of width ~eps
+    must resolve: the smallest of its necks, gaps and holes (`Feature`).
+
+    Not collective. `curve` is a list of polylines (M, 2) in (r, z) as
+    `level_set` returns them, or one curve: an (M, 2) array or an (r, z)
+    pair of arrays (a sharp shape's generating curve from the axis to the
+    axis). A piece whose ends meet off the axis is a closed loop (a torus's
+    section). The pieces are resampled uniformly in arc length, `samples`
+    points over all of them, and
+
+    - a neck is a local minimum of r along a piece (not a closed loop), away
+      from its ends, that r rises from on both sides by NECK_RISE of it: its
+      width 2 r (the pinch of a stomatocyte's or a dumbbell's neck);
+    - a gap is the smallest distance d between two points of the curve more
+      than `gap_arc` d apart along it (on different pieces: any two), found
+      with a `cKDTree` (pairs within a radius doubled until one qualifies):
+      a stomatocyte's outer and inner membranes, a bud and its mother, a
+      discocyte's dimple; neighbours along a curve, and the two sides of a
+      fold, are no gap (a semicircle's ends lie pi/2 d apart);
+    - a hole is twice the smallest r of a closed loop (a torus's hole).
+
+    Without any of those narrower, a piece's own size: a circle's diameter.
+    Returns a `Feature` (size, kind, where); lengths in the curve's units.
+    """
+    pieces = _feature_pieces(curve)
+    if not pieces:
+        raise ValueError("no curve to measure")
+    extent = float(np.ptp(np.vstack(pieces), axis=0).max())
+    lengths = np.array([_arc_length(p)[-1] for p in pieces])
+    closes = 1e-6 * max(extent, np.finfo(float).tiny)
+    closed = [bool(np.hypot(*(p[0] - p[-1])) < max(closes, 1e-3 * extent)
+                   and p[:, 0].min() > 1e-3 * extent) for p in pieces]
+    h = lengths.sum() / samples
+    points, ids, arcs = [], [], []
+    for k, (piece, length) in enumerate(zip(pieces, lengths)):
+        count = max(3, int(np.ceil(length / h)) + 1)
+        points.append(_resample(piece, count))
+        ids.append(np.full(count, k))
+        arcs.append(np.linspace(0.0, length, count))
+    found = []
+    for piece, loop in zip(points, closed):
+        r = piece[:, 0]
+        box = 0.5 * (piece.min(axis=0) + piece.max(axis=0))
+        if loop:
+            i = int(np.argmin(r))
+            found.append(Feature(2.0 * float(r[i]), 'hole', piece[i].copy()))
+            found.append(Feature(float(np.ptp(piece, axis=0).min()), 'tube', box))
+            continue
+        found.append(Feature(float(min(2.0 * r.max(), np.ptp(piece[:, 1]))), 'diameter', box))
+        necks = _necks(r, 1e-3 * extent)
+        if necks.size:
+            i = int(necks[np.argmin(r[necks])])
+            found.append(Feature(2.0 * float(r[i]), 'neck', piece[i].copy()))
+    gap = _smallest_gap(np.vstack(points), np.concatenate(ids), np.concatenate(arcs),
+                        lengths, np.array(closed), h, extent, gap_arc)
+    if gap is not None:
+        found.append(gap)
+    return min(found, key=lambda f: f.size)
+
+
+def _feature_pieces(curve):
+    """`smallest_feature`'s curve as a list of (M, 2) float arrays of two points or more."""
+    if isinstance(curve, tuple) and len(curve) == 2 and np.ndim(curve[0]) == 1:
+        curve = [np.column_stack([np.asarray(curve[0], float), np.asarray(curve[1], float)])]
+    elif isinstance(curve, np.ndarray) and curve.ndim == 2:
+        curve = [curve]
+    pieces = []
+    for piece in curve:
+        piece = np.asarray(piece, dtype=float)
+        keep = np.concatenate([[True], np.hypot(*np.diff(piece, axis=0).T) > 0])
+        if keep.sum() >= 2:
+            pieces.append(piece[keep])
+    return pieces
+
+
+def _necks(r, floor):
+    """Indices of the local minima of r along an open piece that r rises from on both
+    sides by NECK_RISE of it (at least `floor`) before it falls below it again."""
+    from scipy.signal import find_peaks
+    peaks, props = find_peaks(-r, prominence=0.0)
+    if not peaks.size:
+        return peaks
+    keep = (props['prominences'] >= np.maximum(NECK_RISE * r[peaks], floor)) & (r[peaks] > floor)
+    return peaks[keep]
+
+
+def _smallest_gap(points, ids, arcs, lengths, closed, h, extent, gap_arc):
+    """The gap `Feature` of resampled points (their piece and arc length), or None."""
+    tree = cKDTree(points)
+    radius = 4.0 * h
+    while True:
+        pairs = tree.query_pairs(radius, output_type='ndarray')
+        if len(pairs):
+            i, j = pairs.T
+            d = np.hypot(*(points[i] - points[j]).T)
+            along = np.abs(arcs[i] - arcs[j])
+            loop = closed[ids[i]]
+            along = np.where(loop, np.minimum(along, lengths[ids[i]] - along), along)
+            along = np.where(ids[i] == ids[j], along, np.inf)
+            ok = along > gap_arc * d
+            if ok.any():
+                m = np.flatnonzero(ok)[np.argmin(d[ok])]
+                return Feature(float(d[m]), 'gap', 0.5 * (points[i[m]] + points[j[m]]))
+        if radius > 2.0 * extent:
+            return None
+        radius *= 2.0
 
 
 def up_down_asymmetry(curve, radius):
