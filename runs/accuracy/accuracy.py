@@ -5,11 +5,13 @@ picked by hand, on NP ranks; written to runs/accuracy/tol.md.
     python runs/accuracy/accuracy.py [--np 2] [--tol 1e-3] [--out runs/accuracy]
 
 Every run is the command line in a child process (its wall time is the child's, start-up
-included), its checkpoint written under --out; the sharp-interface energy is the project's
-sharp solver's. Runs from any working directory.
+included), its checkpoint written under --out, the step checkpoints of an earlier run removed
+first (-pf_tol would resume from them); the sharp-interface energy is the project's sharp
+solver's. Runs from any working directory.
 """
 import argparse
 import os
+import shutil
 import sys
 import time
 
@@ -29,6 +31,7 @@ CASES = [
 
 def solve(np_, args, output):
     """Wall seconds and the result of the command line with `args`, run from ROOT."""
+    shutil.rmtree(os.path.splitext(output)[0] + '_tol', ignore_errors=True)
     t0 = time.perf_counter()
     done = series.run(series.command(np_, *args, '-pf_output', output), cwd=ROOT,
                       capture_output=True, text=True)
