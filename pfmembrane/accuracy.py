@@ -180,20 +180,6 @@ def _reference_feature(steps, sharp):
     return None
 
 
-def level_set_feature(res, mpi):
-    """(size, kind) of the smallest feature (`levelset.smallest_feature`) of `res`'s
-    phi_h = 0 on the full box, or None where it has none. Collective: rank 0 computes."""
-    found = None
-    if mpi.Get_rank() == 0:
-        from pfmembrane.analysis import levelset
-        try:
-            found = levelset.smallest_feature(levelset.level_set(res.checkpoint().unfolded()))
-            found = (found.size, found.kind)
-        except (ValueError, RuntimeError):
-            found = None
-    return mpi.bcast(found, root=0)
-
-
 def error_bar(steps):
     """(estimate, bar): the last usable step's estimate and the bar from it and the
     usable step before (module docstring); (NaN, NaN) without an estimate, bar NaN
@@ -326,7 +312,8 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         elif not math.isfinite(estimate):
             note = f"no level-set energy at eps {eps:g}"
         usable = not note
-        feature = level_set_feature(res, mpi) if usable else None
+        feature = ((res.attrs['feature_size'], res.attrs['feature_kind'])
+                   if usable and 'feature_size' in res.attrs else None)
         wall = mpi.allreduce(time.perf_counter() - t_step, op=_max())
         f = (grid.adapt_info['f'] if grid.adapt_info else
              steps[-1].adapt if how == 'previous grid' else 0.0)

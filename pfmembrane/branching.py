@@ -220,7 +220,7 @@ def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
     for key in ('sharp_energy', 'sharp_rel_error', 'sharp_dist_max', 'sharp_dist_mean',
                 'level_set_energy', 'topology', 'components', 'genus', 'torus_radii',
                 'index_m', 'lowest_m', 'time_modes', 'sharp_note',
-                'component_energies'):
+                'component_energies', 'feature_size', 'feature_kind'):
         attrs.pop(key, None)
     phi = problem.nodal(branch.x, -1.0)
     if checks:

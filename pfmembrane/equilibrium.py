@@ -68,7 +68,6 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
         max_phi = problem.assembly.max_abs_phi(x)
         nu, stats = problem.nu, problem.solver.stats
         factorizations = problem.solver.factorizations
-        problem.solver.destroy()
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
     if unused:
         warnings.warn(f"solve options never used: {', '.join('-' + k for k in unused)}",

@@ -164,6 +164,7 @@ def test_the_command_line_writes_the_estimate(pfm, tmp_path):
     assert (tmp_path / 'disc_tol' / 'step1.h5').exists()
 
 
+@pytest.mark.slow  # a sharp stomatocyte: about 2 s alone
 def test_the_first_eps_follows_the_sharp_start_s_smallest_feature(monkeypatch):
     monkeypatch.setattr(accuracy, 'solve', None)  # no solve
     # the stomatocyte at v 0.6: its sharp neck 2 r = 0.0991 puts eps0 at 0.0124, under the

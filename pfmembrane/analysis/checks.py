@@ -15,7 +15,8 @@ ENERGETIC = ('1 sphere', '1 torus')
 def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     """phi_h one eps inside the box (`levelset.boundary_phi`) and, where a level
     set exists, its topology (`levelset.topology`: ``topology``, ``components``,
-    ``genus``) and, for one sphere, the level set's own energy
+    ``genus``), its smallest feature (`levelset.smallest_feature`: ``feature_size``,
+    ``feature_kind``) and, for one sphere, the level set's own energy
     (`levelset.level_set_energy`) and, where the scene has a sharp-interface
     shape, the energy error and level-set distance against it, or for one
     torus its own energy and radii (`levelset.loop_energy`), or for any other
@@ -36,6 +37,11 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
             shape = levelset.topology(curve, ckpt.box)
             result.update(topology=shape['label'], components=shape['components'],
                           genus=shape['tori'])
+            try:
+                feature = levelset.smallest_feature(curve)
+                result.update(feature_size=feature.size, feature_kind=feature.kind)
+            except (ValueError, RuntimeError):
+                pass  # no feature of this curve: the checks below do not need it
             if shape['label'] == '1 torus':   # no sharp torus to compare: its own energy
                 energy, radii = levelset.loop_energy(ckpt, curve[0], field_h)
                 result.update(level_set_energy=energy, torus_radii=np.asarray(radii))

@@ -311,17 +311,22 @@ def _check_box(box):
                               f"numbers (Rb, Zb), got {box.tolist()}")
 
 
+def _set_attrs(target, attrs, where=''):
+    """`attrs` as HDF5 attributes of `target` (a file or group); CheckpointError names
+    the one HDF5 cannot store."""
+    for key, value in attrs.items():
+        try:
+            target.attrs[key] = value
+        except TypeError as exc:
+            raise CheckpointError(f"attribute {key!r}{where} of type {type(value).__name__} "
+                                  "cannot be stored in HDF5") from exc
+
+
 def _fill(tmp, arrays, attrs):
     with h5py.File(tmp, "x") as h5:
         for name, data in arrays.items():
             h5.create_dataset(name, data=data)
-        for key, value in attrs.items():
-            try:
-                h5.attrs[key] = value
-            except TypeError as exc:
-                raise CheckpointError(f"attribute {key!r} of type "
-                                      f"{type(value).__name__} cannot be "
-                                      f"stored in HDF5") from exc
+        _set_attrs(h5, attrs)
 
 
 def _load(path, expect_box):
@@ -511,13 +516,7 @@ def write_branch(path, points, attrs=None, comm=None):
                     group.create_dataset("nodes", data=nodes)
                     before = (group["nodes"].name, nodes)
                 group.create_dataset("phi", data=phi)
-                for key, value in point_attrs.items():
-                    try:
-                        group.attrs[key] = value
-                    except TypeError as exc:
-                        raise CheckpointError(f"attribute {key!r} of point {i} of "
-                                              f"type {type(value).__name__} cannot be "
-                                              f"stored in HDF5") from exc
+                _set_attrs(group, point_attrs, f" of point {i}")
 
     _on_root(comm, lambda: _replace_atomically(path, fill),
              f"cannot write branch {path}")

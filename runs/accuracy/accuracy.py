@@ -5,20 +5,20 @@ picked by hand, on NP ranks; written to runs/accuracy/tol.md.
     python runs/accuracy/accuracy.py [--np 2] [--tol 1e-3] [--out runs/accuracy]
 
 Every run is the command line in a child process (its wall time is the child's, start-up
-included), its checkpoint written under --out, the step checkpoints of an earlier run removed
-first (-pf_tol would resume from them); the sharp-interface energy is the project's sharp
+included; `children.run`), its checkpoint written under --out; the sharp-interface energy is the project's sharp
 solver's. Runs from any working directory.
 """
 import argparse
 import os
-import shutil
 import sys
-import time
 
 import pfmembrane as pf
-from pfmembrane import report, series, sharp
+from pfmembrane import report, sharp
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+HERE = os.path.dirname(os.path.abspath(__file__))
+if HERE not in sys.path:
+    sys.path.insert(0, HERE)
+from children import ROOT, run  # noqa: E402  (runs/accuracy/children.py)
 # (name, options of the scene, the hand-picked run's options, family, v)
 CASES = [
     ('discocyte', ['-options_file', 'options/discocyte.opts'], [], 'oblate', 0.8),
@@ -30,14 +30,10 @@ CASES = [
 
 
 def solve(np_, args, output):
-    """Wall seconds and the result of the command line with `args`, run from ROOT."""
-    shutil.rmtree(os.path.splitext(output)[0] + '_tol', ignore_errors=True)
-    t0 = time.perf_counter()
-    done = series.run(series.command(np_, *args, '-pf_output', output), cwd=ROOT,
-                      capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if done.returncode not in (0, 1):
-        sys.exit(f"{' '.join(args)}: status {done.returncode}\n{done.stderr}")
+    """Wall seconds and the result of the command line with `args` (`children.run`)."""
+    wall, code, _, stderr, _ = run(np_, args, output)
+    if code not in (0, 1):
+        sys.exit(f"{' '.join(args)}: status {code}\n{stderr}")
     return wall, pf.read(output)
 
 

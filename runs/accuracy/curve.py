@@ -14,16 +14,16 @@ one that fails keeps its row with its message. The true error is against the pro
 solver (R 0.4). Runs from any working directory.
 """
 import argparse
-import datetime
 import os
-import shutil
 import sys
-import time
 
 import pfmembrane as pf
-from pfmembrane import report, series, sharp
+from pfmembrane import report, sharp
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+HERE = os.path.dirname(os.path.abspath(__file__))
+if HERE not in sys.path:
+    sys.path.insert(0, HERE)
+from children import ROOT, last_line, run, seconds_left, steps  # noqa: E402  (runs/accuracy/children.py)
 # (name, options of the scene, family, v)
 CASES = [
     ('discocyte', ['-options_file', 'options/discocyte.opts'], 'oblate', 0.8),
@@ -32,32 +32,6 @@ CASES = [
                            '-pf_reduced_volume', '0.6'], 'stomatocyte', 0.6),
 ]
 MIN_LEFT = 30.0  # seconds: a run with less left before --until is skipped
-
-
-def seconds_left(until):
-    """Seconds to `until` (HH:MM UTC today), inf without it."""
-    if not until:
-        return float('inf')
-    now = datetime.datetime.now(datetime.timezone.utc)
-    h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0, microsecond=0) - now).total_seconds()
-
-
-def run(np_, args, output):
-    """(wall seconds, return code, stdout, stderr) of the command line with `args`, from ROOT,
-    the step checkpoints of an earlier run of `output` removed first."""
-    shutil.rmtree(os.path.splitext(output)[0] + '_tol', ignore_errors=True)
-    if os.path.exists(output):
-        os.remove(output)
-    t0 = time.perf_counter()
-    done = series.run(series.command(np_, *args, '-pf_output', output), cwd=ROOT,
-                      capture_output=True, text=True)
-    return time.perf_counter() - t0, done.returncode, done.stdout, done.stderr
-
-
-def last_line(text):
-    lines = [t.strip() for t in text.splitlines() if t.strip()]
-    return lines[-1].replace('|', '/') if lines else ''
 
 
 def main(argv=None):
@@ -101,7 +75,7 @@ def main(argv=None):
                 print(' | '.join(map(str, rows[-1])), flush=True)
                 write()
                 continue
-            wall, code, stdout, stderr = run(
+            wall, code, stdout, stderr, _ = run(
                 args.np, [*scene, '-pf_box', 'auto', '-pf_tol', f"{tol:g}",
                           '-pf_tol_time', f"{budget:.0f}"], output)
             try:
@@ -120,8 +94,7 @@ def main(argv=None):
             status = 'reached' if reached else 'not reached'
             if code not in (0, 1):
                 status += f" (status {code}: {last_line(stderr)})"
-            eps = ' '.join(f"{e:.3g}" for e in a['tol_eps']) if 'tol_eps' in a else '-'
-            nodes = ' '.join(str(int(n)) for n in a['tol_nodes']) if 'tol_nodes' in a else '-'
+            eps, nodes = steps(a)
             error = estimate / reference - 1
             rows.append([name, f"{tol:g}", status, f"{wall:.1f}", f"{budget:.0f}",
                          f"{estimate:.6f}", f"{bar:.2g}" if bar == bar else '-',

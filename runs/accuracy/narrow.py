@@ -17,20 +17,18 @@ checkpoint it wrote, if any. A row per scene whatever happened: reached, not rea
 (stomatocyte, prolate), with its failure said where it fails. Runs from any working directory.
 """
 import argparse
-import datetime
 import math
 import os
-import shutil
-import signal
-import subprocess
 import sys
-import time
 import warnings
 
 import pfmembrane as pf
-from pfmembrane import report, series, sharp
+from pfmembrane import report, sharp
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+HERE = os.path.dirname(os.path.abspath(__file__))
+if HERE not in sys.path:
+    sys.path.insert(0, HERE)
+from children import ROOT, clean, last_line, run, seconds_left, steps  # noqa: E402  (runs/accuracy/children.py)
 R = 0.4
 DISCOCYTE = ['-options_file', 'options/discocyte.opts']
 DUMBBELL = ['-options_file', 'options/dumbbell.opts']
@@ -47,58 +45,12 @@ CASES = [
 MIN_LEFT = 30.0
 
 
-def seconds_left(until):
-    """Seconds to `until` (HH:MM UTC today), inf without it."""
-    if not until:
-        return float('inf')
-    now = datetime.datetime.now(datetime.timezone.utc)
-    h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0, microsecond=0) - now).total_seconds()
-
-
-def run(np_, args, output, limit):
-    """(wall seconds, return code, stdout, stderr, killed) of the command line with `args`, from
-    ROOT, the step checkpoints of an earlier run of `output` removed first; stopped after
-    `limit` seconds."""
-    shutil.rmtree(os.path.splitext(output)[0] + '_tol', ignore_errors=True)
-    if os.path.exists(output):
-        os.remove(output)
-    t0 = time.perf_counter()
-    child = subprocess.Popen(series.command(np_, *args, '-pf_output', output), cwd=ROOT,
-                             env=series.environment(), stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True, start_new_session=True)
-    killed = False
-    try:
-        stdout, stderr = child.communicate(timeout=limit)
-    except subprocess.TimeoutExpired:
-        killed = True
-        os.killpg(child.pid, signal.SIGTERM)
-        try:
-            stdout, stderr = child.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(child.pid, signal.SIGKILL)
-            stdout, stderr = child.communicate()
-    return time.perf_counter() - t0, child.returncode, stdout, stderr, killed
-
-
 def last_step(output):
     """The last step checkpoint under `<output stem>_tol/`, or None."""
     folder = os.path.splitext(output)[0] + '_tol'
     steps = sorted((int(f[4:-3]), f) for f in os.listdir(folder)
                    if f.startswith('step') and f.endswith('.h5')) if os.path.isdir(folder) else []
     return os.path.join(folder, steps[-1][1]) if steps else None
-
-
-def clean(text):
-    return ' '.join(text.split()).replace('|', '/')
-
-
-def last_line(text):
-    """The message of a failure: the last line naming an error, else the last line that is
-    not part of mpiexec's banner (dashes)."""
-    lines = [t.strip() for t in text.splitlines() if t.strip().strip('-')]
-    errors = [t for t in lines if 'error' in t.lower() or 'usage' in t.lower()]
-    return clean((errors or lines or [''])[-1])
 
 
 def sharp_energy(v, family, C0):
@@ -206,8 +158,7 @@ def main(argv=None):
         features = ('-' if 'tol_features' not in a else
                     ' '.join(f"{f:.3g}" for f in a['tol_features'])
                     + (f" ({a['tol_feature_kind']})" if a.get('tol_feature_kind') else ''))
-        eps = ' '.join(f"{e:.3g}" for e in a['tol_eps']) if 'tol_eps' in a else '-'
-        nodes = ' '.join(str(int(n)) for n in a['tol_nodes']) if 'tol_nodes' in a else '-'
+        eps, nodes = steps(a)
         rows.append([name, shown, status, f"{wall:.1f}", f"{estimate:.6f}",
                      f"{bar:.2g}" if bar == bar else '-',
                      f"{bar / abs(estimate):.2g}" if bar == bar else '-', sharp_text,

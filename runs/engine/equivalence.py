@@ -91,21 +91,17 @@ def main():
             line(f"oblate branch v {v:.12f} E", p.energy)
             if v < 0.75:
                 break
-    if 'spectra' in which:
-        scene = pf.Scene(reduced_volume=0.8, radius=0.4, box=(1.5, 2.0), branch='oblate')
-        grid = pf.Grid.uniform(scene, nodes=3000)
-        res = pf.solve(scene, grid, eps=0.06, checks=False)
-        line("discocyte eps 0.06 E", res.energy)
-        for m, s in enumerate(pf.stability(res, modes=4)):
-            line(f"discocyte eps 0.06 m {m} lambda", [float(v) for v in s.eigenvalues])
-    if 'clifford' in which:
-        scene = pf.Scene(reduced_volume=0.7116374975, radius=0.4, box=(0.8, 1.0), branch='torus')
-        grid = pf.Grid.uniform(scene, nodes=6124)
-        res = pf.solve(scene, grid, eps=0.04, checks=False)
-        line("clifford eps 0.04 E", res.energy)
-        for m, s in enumerate(pf.stability(res, modes=4)):
-            line(f"clifford eps 0.04 m {m} lambda", [float(v) for v in s.eigenvalues])
-
+    spectra = {'spectra': ('discocyte eps 0.06', dict(reduced_volume=0.8, box=(1.5, 2.0),
+                                                      branch='oblate'), 3000, 0.06),
+               'clifford': ('clifford eps 0.04', dict(reduced_volume=0.7116374975, box=(0.8, 1.0),
+                                                      branch='torus'), 6124, 0.04)}
+    for key, (name, scene, nodes, eps) in spectra.items():
+        if key in which:
+            scene = pf.Scene(radius=0.4, **scene)
+            res = pf.solve(scene, pf.Grid.uniform(scene, nodes=nodes), eps=eps, checks=False)
+            line(f"{name} E", res.energy)
+            for m, s in enumerate(pf.stability(res, modes=4)):
+                line(f"{name} m {m} lambda", [float(v) for v in s.eigenvalues])
 
 if __name__ == '__main__':
     main()
