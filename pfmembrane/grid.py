@@ -73,6 +73,12 @@ class Grid:
     def n_nodes(self):
         return len(self.discrete.nodes)
 
+    @property
+    def spacing(self):
+        """s_a of the locality beta_a = gamma / s_a^2: the smoothed nodal
+        spacing, held at its floor quantile where the grid has one."""
+        return np.sqrt(self.params['gamma'] / self.discrete.beta)
+
     def adapt_summary(self):
         """One line on the CVT relocation that made this grid ('' for a grid
         not made by `adapt`)."""

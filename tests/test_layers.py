@@ -43,14 +43,10 @@ def test_the_public_face_is_short():
 
 # Public: the package's top level and these; below it: kernels, parallel, io.
 BELOW = ('pfmembrane.kernels', 'pfmembrane.parallel', 'pfmembrane.io', 'pfmembrane.studies')
-# Experiments that patch the library (probes/quadratic.patch) or wrap its solver to sample
-# memory: they reach below the API by design and are not studies.
-PROBES = os.path.join('runs', 'atlas', 'probes')
 
 
 def test_the_studies_stand_on_the_public_api():
-    scripts = [p for p in glob.glob(os.path.join(ROOT, 'runs', '**', '*.py'), recursive=True)
-               if not os.path.relpath(p, ROOT).startswith(PROBES)]
+    scripts = glob.glob(os.path.join(ROOT, 'runs', '**', '*.py'), recursive=True)
     assert len(scripts) >= 15
     for path in scripts:
         below = {m for m in imports(path) if m.startswith(BELOW)}
