@@ -59,7 +59,8 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
             raise UsageError(
                 f"eps {eps:g} is below what this grid resolves (eps_min = {grid.eps_min:.4g}); "
                 "use more nodes, an adapted grid, or -pf_force to run anyway")
-        phi0, nu0, solved = start_phi(scene, grid, eps, start, problem.settings.start)
+        phi0, nu0, solved = start_phi(scene, grid, eps, start, problem.settings.start,
+                                      problem.settings.perturb)
         x = problem.vec(phi0)
         # Failures of the solve end in `state`; anything else propagates at once,
         # with no collective cleanup that a rank still computing would never reach.
@@ -101,7 +102,10 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                  peak_rss_mb=mpi.allreduce(
                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX),
                  box=np.asarray(scene.box))
-    if converged and checks:  # an interrupted run checkpoints at once
+    if scene.harmonics:
+        attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
+                     dihedral=scene.dihedral)
+    elif converged and checks:  # an interrupted run checkpoints at once
         attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,
                   unused_options=unused)

@@ -20,6 +20,9 @@ class Scene(Targets):
     box: tuple = SCENE['box']
     branch: str = SCENE['branch']
     symmetric: bool = False
+    harmonics: int = 0
+    dihedral: int = 1
+    mirror: bool = True
 
     def __post_init__(self):
         if self.box != 'auto':
@@ -29,6 +32,12 @@ class Scene(Targets):
     @property
     def zc(self):
         return 0.5 * self.box[1]
+
+    @property
+    def harmonic_set(self):
+        """The azimuthal harmonics (`kernels.harmonics.Harmonics`) phi carries."""
+        from pfmembrane.kernels.harmonics import Harmonics
+        return Harmonics(self.harmonics, self.dihedral, sines=not self.mirror)
 
     @property
     def plane(self):
@@ -55,4 +64,6 @@ class Scene(Targets):
         return cls(reduced_volume=float(attrs['reduced_volume']), c0=float(attrs['c0']),
                    radius=float(attrs['radius']), k=float(attrs['k']),
                    box=tuple(float(b) for b in attrs['box']), branch=str(attrs['branch']),
-                   symmetric=bool(attrs.get('symmetric', 0)))
+                   symmetric=bool(attrs.get('symmetric', 0)),
+                   harmonics=int(attrs.get('harmonics_highest', 0)),
+                   dihedral=int(attrs.get('dihedral', 1)))

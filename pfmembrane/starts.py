@@ -59,22 +59,34 @@ def check_fits(p, eps=None, start=None, sharp=None):
     return kind, shape
 
 
-def start_phi(scene, grid, eps, start, shape='auto'):
+def start_phi(scene, grid, eps, start, shape='auto', perturb=0.0):
     """Nodal phi of the start at every node (the scene's initial `shape`, the
     -pf_start choice, or `start`'s phi_h on this grid, its tanh profile
     rescaled to `eps`), the start's multipliers (None for a fresh start) and
-    whether it was solved."""
+    whether it was solved. With harmonics, phi is (nodes x harmonics): an
+    axisymmetric fresh start carries `perturb` in every harmonic m > 0."""
     if start is None:
         kind, geometry = check_fits(scene, eps, shape)
+        if kind == 'across' and not scene.harmonics:
+            raise UsageError("-pf_start across: a shape across the axis needs harmonics "
+                             "(-pf_harmonics)")
+        if kind == 'across':
+            a, c = geometry
+            return initial.harmonic_coefficients(
+                grid.nodes - [0.0, scene.zc],
+                lambda xyz: initial.ellipsoid_phi(xyz, (c, a, a), eps),
+                scene.harmonic_set, grid.eps_min), None, False
         if kind != 'sharp':
-            return fresh_phi(grid.nodes, kind, geometry, scene.zc, eps), None, False
+            phi = fresh_phi(grid.nodes, kind, geometry, scene.zc, eps)
+            return lifted(phi, grid.nodes, scene, perturb), None, False
         sharp = sharp_shape(scene)
         kind, geometry = check_fits(scene, eps, shape, (sharp.r, sharp.z))
         # The sharp shape's multipliers are the phase field's in the limit eps -> 0: a
         # better start for stage 1 than a least-squares fit, which takes a stomatocyte's
         # inner bud into its outer membrane (nu_A ~ 245 for 1.3 at v = 0.62, eps 0.02).
         nu = np.array([sharp.tension, sharp.pressure, 0.0][:2 if grid.symmetric else 3])
-        return fresh_phi(grid.nodes, kind, geometry, scene.zc, eps), nu, True
+        phi = fresh_phi(grid.nodes, kind, geometry, scene.zc, eps)
+        return lifted(phi, grid.nodes, scene, perturb), nu, True
     if start.attrs.get('symmetric', 0) != grid.symmetric:
         raise UsageError(
             f"the start {start.path or ''} holds a "
@@ -88,7 +100,28 @@ def start_phi(scene, grid, eps, start, shape='auto'):
     else:
         phi = transfer(start.nodes, start.phi, start.locality(grid.plane),
                                   start.basis['cutoff'], grid.nodes, grid.box, grid.plane)
-    return initial.rescaled_phi(phi, start.eps, eps), start.nu, start.converged
+    phi = initial.rescaled_phi(phi, start.eps, eps)
+    if phi.ndim == 1:
+        return lifted(phi, grid.nodes, scene, perturb), start.nu, start.converged
+    if phi.shape[1] != len(scene.harmonic_set):
+        raise UsageError(f"the start {start.path or ''} holds {phi.shape[1]} harmonics, the "
+                         f"scene {len(scene.harmonic_set)}")
+    return phi, start.nu, start.converged
+
+
+def lifted(phi, nodes, scene, perturb):
+    """An axisymmetric nodal phi as the harmonics of `scene` (phi itself
+    without): the harmonics m > 0 of a fresh start carry perturb (1 - phi^2)
+    (r / R)^-m, deterministic, on the membrane, so that psi_m = perturb
+    (1 - phi^2) (r / R)^m, and a solve does not rest on the axisymmetric
+    family's saddle."""
+    if not scene.harmonics:
+        return phi
+    h = scene.harmonic_set
+    out = np.zeros((len(phi), len(h)))
+    out[:, 0] = phi
+    out[:, 1:] = perturb * (1.0 - phi * phi)[:, None] / scene.radius ** h.m[1:]
+    return out
 
 
 def sharp_shape(scene):

@@ -36,7 +36,7 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
     """
     area, volume = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
     sizes = {kind: extent(kind, construction(kind, branch, area, volume))
-             for kind in STARTS[branch] if kind != 'sharp'}
+             for kind in STARTS[branch] if kind not in ('sharp', 'across')}
     if branch not in sharp.BRANCHES:
         return sizes
     try:

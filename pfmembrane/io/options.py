@@ -18,15 +18,15 @@ from pfmembrane.paper import PAPER_BOX, SCENE
 # The initial shapes of each family (-pf_start), its default (auto) first: spheroids and
 # sharp-interface shapes (`analysis.sharp`) where they exist, else a construction of its own
 # (`kernels.initial.construction`; the sharp solver has no pear branch: two unequal spheres).
-STARTS = {'oblate': ('spheroid', 'sharp'), 'prolate': ('spheroid', 'sharp'),
+STARTS = {'oblate': ('spheroid', 'sharp'), 'prolate': ('spheroid', 'sharp', 'across'),
           'stomatocyte': ('sharp',), 'pear': ('spheres',), 'budded': ('spheres',),
           'torus': ('torus',)}
 BRANCHES = tuple(STARTS)
-START = ('auto', 'spheroid', 'sharp')
+START = ('auto', 'spheroid', 'sharp', 'across')
 # Families whose starts are up-down symmetric: the half box (-pf_symmetric) holds them.
 UP_DOWN = ('oblate', 'prolate', 'budded', 'torus')
 SHAPE_NAMES = {'spheroid': 'spheroid', 'torus': 'ring torus', 'spheres': 'pair of spheres',
-               'sharp': 'sharp-interface shape'}
+               'sharp': 'sharp-interface shape', 'across': 'spheroid across the axis'}
 STAGE1 = ('newton', 'tao', 'none')
 QUADRATURE = (1, 2, 4, 5)
 MIN_NODES = 200
@@ -49,6 +49,7 @@ class Settings:
     summary: bool = False
     force: bool = False
     start: str = 'auto'
+    perturb: float = 0.02
 
 
 def targets(radius, reduced_volume):
@@ -94,6 +95,9 @@ class Params(Settings, Targets):
     tol: float = 0.0
     tol_nodes: int = 200000
     tol_time: float = 1800.0
+    harmonics: int = 0
+    dihedral: int = 1
+    mirror: bool = True
 
 
 HELP = {
@@ -131,6 +135,12 @@ HELP = {
            'error bar (pfmembrane.accuracy; steps in <output stem>_tol/, resumed; 0: off)',
     'tol_nodes': 'with -pf_tol: the most nodes of any grid (the budget)',
     'tol_time': 'with -pf_tol: the wall seconds of the run (the budget)',
+    'harmonics': 'J: phi carries the azimuthal harmonics m = j n, j = 0..J (n: -pf_dihedral), '
+                 'psi_j = r^m chi_j(r,z) cos(m theta); 0: axisymmetric',
+    'dihedral': 'dihedral order n of the scene: the harmonics are multiples of n',
+    'mirror': 'a mirror plane through the axis: cosines only (0, sines too: not yet supported)',
+    'perturb': 'with harmonics: amplitude of the deterministic perturbation a fresh '
+               'axisymmetric start gets in every harmonic m > 0',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
@@ -315,6 +325,12 @@ def check_scene(s):
                          "no closed surface encloses more than the sphere of the same area")
     if s.branch not in BRANCHES:
         raise UsageError(f"-pf_branch: unknown shape {s.branch!r} (choose {', '.join(BRANCHES)})")
+    harmonics, dihedral = getattr(s, 'harmonics', 0), getattr(s, 'dihedral', 1)
+    _require(harmonics >= 0, 'harmonics', '>= 0', harmonics)
+    _require(dihedral >= 1, 'dihedral', '>= 1', dihedral)
+    if not getattr(s, 'mirror', True):
+        raise UsageError("-pf_mirror 0: sines (no mirror plane through the axis) need the "
+                         "rotation about the axis pinned, which is not implemented")
     if s.symmetric and s.branch not in UP_DOWN:
         raise UsageError(f"-pf_symmetric: the {s.branch} is not up-down symmetric, the half box "
                          f"cannot hold it (the half box admits {', '.join(UP_DOWN)})")

@@ -56,6 +56,35 @@ def spheroid_phi(points, a, c, zc, eps):
     return np.tanh(d / (np.sqrt(2.0) * eps))
 
 
+def ellipsoid_phi(points, axes, eps):
+    """phi = tanh(d / (sqrt 2 eps)) of the ellipsoid of semi-axes `axes` along
+    x, y, z about the origin at 3D `points` (n x 3), d its first-order
+    signed distance, positive inside (as `spheroid_phi`)."""
+    q = points / np.asarray(axes)
+    F = np.einsum('ij,ij->i', q, q) - 1.0
+    grad = 2.0 * np.linalg.norm(q / np.asarray(axes), axis=1)
+    d = np.clip(-F / np.maximum(grad, 1e-300), -min(axes), min(axes))
+    return np.tanh(d / (np.sqrt(2.0) * eps))
+
+
+def harmonic_coefficients(points, field, harmonics, floor, samples=8):
+    """Nodal chi_j of a 3D `field` (a function of n x 3 points): at each
+    (r, z) of `points` the mean of field T_j over `samples` (J + 1) angles of
+    one period, over the mean of T_j^2, divided by r^m (r at least `floor`:
+    a smooth field's harmonics m > 0 vanish on the axis). Returns
+    (n, nh)."""
+    theta = (2 * np.pi / harmonics.dihedral) * np.arange(samples * (harmonics.highest + 1)) \
+        / (samples * (harmonics.highest + 1))
+    r, z = points[:, 0], points[:, 1]
+    xyz = np.stack([np.outer(r, np.cos(theta)), np.outer(r, np.sin(theta)),
+                    np.outer(z, np.ones_like(theta))], axis=-1)
+    f = field(xyz.reshape(-1, 3)).reshape(len(points), len(theta))
+    mt = np.outer(theta, harmonics.m)
+    T = np.where(harmonics.sine, np.sin(mt), np.cos(mt))
+    c = f @ T / (T * T).sum(axis=0)
+    return c / np.maximum(r, floor)[:, None] ** harmonics.m
+
+
 def profile(d, eps):
     """The tanh profile phi = tanh(d / (sqrt 2 eps)) of a signed distance d."""
     return np.tanh(d / (np.sqrt(2.0) * eps))
@@ -201,7 +230,7 @@ def construction(kind, branch, area, volume):
     (semi-axes a, c), a 'torus' (radii a, b) or two 'spheres' (radii, heights;
     equal but for the pear). Raises ValueError when it cannot have this area
     and volume."""
-    if kind == 'spheroid':
+    if kind in ('spheroid', 'across'):
         return spheroid_axes(area, volume, branch)
     if kind == 'torus':
         return torus_radii(area, volume)
@@ -214,6 +243,8 @@ def extent(kind, shape):
     'sharp' (its generating curve r, z about the centroid)."""
     if kind == 'spheroid':
         return tuple(shape)
+    if kind == 'across':  # the long axis c along x
+        return shape[1], shape[0]
     if kind == 'torus':
         a, b = shape
         return a + b, a

@@ -21,12 +21,15 @@ class Assembly:
     in the layout's global numbering.
     """
 
-    def __init__(self, grid, eps, k, c0, targets, zc):
-        self.grid, self.layout = grid, grid.layout
+    # The stage-2 Jacobian is this matrix itself, factored (`jacobian_operator`).
+    krylov = False
+
+    def __init__(self, grid, eps, k, c0, targets, zc, forms=None, layout=None):
+        self.grid, self.layout = grid, layout or grid.layout
         self.comm = grid.comm
         self.mpi = self.comm.tompi4py()
         self.eps = eps
-        self.forms = Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
+        self.forms = forms or Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
         moment = (0.0,) if grid.plane is None else ()
         self.targets = np.array([*targets, *moment], dtype=float)
         self.ncon = len(self.targets)
@@ -110,7 +113,7 @@ class Assembly:
         lay, mpi, ncon = self.layout, self.mpi, self.ncon
         size, rank = mpi.Get_size(), mpi.Get_rank()
         n, last = lay.nglobal, rank == size - 1
-        P = self.grid.gram.pattern.tocoo()
+        P = self.local_pattern().tocoo()
         rows, cols = lay.local_numbers[P.row], lay.local_numbers[P.col]
         starts = np.array(mpi.allgather(lay.start) + [n])
         dest = np.searchsorted(starts, rows, side='right') - 1
@@ -172,11 +175,19 @@ class Assembly:
             K.assemble()
         return K
 
+    def local_pattern(self):
+        """The local Hessian's sparsity (CSR, local numbering)."""
+        return self.grid.gram.pattern
+
+    def jacobian_operator(self):
+        """The stage-2 Jacobian's operator: the bordered matrix."""
+        return self.bordered_matrix()
+
     def _hessian_pattern(self):
         """Row pointers and columns of every local Hessian (one pattern per grid),
         in PETSc's integer type, converted once."""
         if self._pattern is None:
-            P = self.grid.gram.pattern
+            P = self.local_pattern()
             self._pattern = (P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType))
         return self._pattern
 

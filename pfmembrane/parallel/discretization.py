@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from pfmembrane.kernels import maxent, nodes as nodesets, quadrature
+from pfmembrane.kernels import nodes as nodesets, quadrature
 from pfmembrane.kernels.gram import Gram
 from pfmembrane.kernels.basis import folded_basis, spacing_and_locality
 from pfmembrane.parallel.partition import Layout

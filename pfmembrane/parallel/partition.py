@@ -125,6 +125,12 @@ class Layout:
         """A distributed vector over the free unknowns."""
         return PETSc.Vec().createMPI((self.nowned, self.nglobal), comm=self.comm)
 
+    def vec(self, phi):
+        """The Vec of the free values of nodal `phi` (every node)."""
+        x = self.create_vec()
+        x.setArray(np.asarray(phi)[self.order[self.start:self.start + self.nowned]])
+        return x
+
     def create_ghosted(self):
         """A distributed vector with this rank's ghost entries appended locally."""
         return PETSc.Vec().createGhost(self.ghosts.astype(PETSc.IntType),

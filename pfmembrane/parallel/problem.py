@@ -38,8 +38,7 @@ class Problem:
             self.settings = read_settings(PETSc.Options(), prefix)
             self.grid, self.scene, self.eps = grid, scene, eps
             self.layout = grid.discrete.layout
-            self.assembly = Assembly(grid.discrete, eps, scene.k, scene.c0,
-                                     (scene.area, scene.volume), scene.zc)
+            self.assembly = assembly(grid.discrete, eps, scene)
             self.solver = Solver(self.assembly, self.settings, self.options)
         except BaseException:
             self.options.close()
@@ -61,14 +60,11 @@ class Problem:
 
     def vec(self, phi):
         """The distributed Vec of the free values of nodal `phi` (every node)."""
-        lay = self.layout
-        x = self.assembly.create_vec()
-        x.setArray(np.asarray(phi)[lay.order[lay.start:lay.start + lay.nowned]])
-        return x
+        return self.assembly.layout.vec(phi)
 
     def nodal(self, x, fill=-1.0):
         """Nodal phi at every node on every rank (`fill` on the Dirichlet nodes)."""
-        return self.layout.nodal(x, fill)
+        return self.assembly.layout.nodal(x, fill)
 
     # -- the two stages --------------------------------------------------------
     def solve(self, x, nu0=None, solved=False):
@@ -181,7 +177,7 @@ class Problem:
         solver.evaluate(x)
         self.assembly.assemble_bordered(x, solver.nu[0], solver.C, 0.0)
         ksp = solver.direct_ksp('stage2_')
-        ksp.setOperators(K)
+        ksp.setOperators(self.assembly.jacobian_operator(), K)
         solver.factorizations += 1
         return ksp
 
@@ -219,6 +215,16 @@ class Problem:
 
     def __exit__(self, kind, value, traceback):
         self.close(collective=kind is None or issubclass(kind, (UsageError, GeneratorExit)))
+
+def assembly(discrete, eps, scene):
+    """The assembly of `scene` on a grid's discretization: axisymmetric, or
+    with the scene's harmonics."""
+    args = (discrete, eps, scene.k, scene.c0, (scene.area, scene.volume), scene.zc)
+    if not scene.harmonics:
+        return Assembly(*args)
+    from pfmembrane.parallel.harmonic import HarmonicAssembly
+    return HarmonicAssembly(*args, scene.harmonic_set)
+
 
 _count = itertools.count(1)
 

@@ -23,6 +23,10 @@ RESTART_DECREMENT = 1e-9
 RESTART_GTOL = 1e-6
 
 
+KRYLOV_RTOL = 1e-10   # stage 2's Krylov solver, where the Jacobian is an action
+KRYLOV_MAX_IT = 500
+
+
 class SolveError(Exception):
     """A stage that did not converge; carries the reason and a remedy."""
 
@@ -284,7 +288,7 @@ class Solver:
         snes = PETSc.SNES().create(P.comm)
         snes.setOptionsPrefix(self.prefix + 'stage2_')
         snes.setFunction(residual, F)
-        snes.setJacobian(jacobian, K, K)
+        snes.setJacobian(jacobian, P.jacobian_operator(), K)
         snes.setTolerances(rtol=self.p.stage2_rtol, atol=1e-12, max_it=50)
         # Full Newton steps: stage 2 starts where stage 1 has converged, and there
         # |F| is a poor merit function. On the 24,597-node discocyte at eps 0.007
@@ -329,7 +333,13 @@ class Solver:
         symmetric indefinite, and LDL^T takes about half the work of LU)
         with AMD-type ordering; options override."""
         ksp.setOptionsPrefix(self.prefix + stage)
-        ksp.setType(PETSc.KSP.Type.PREONLY)
+        if self.P.krylov and stage == 'stage2_':
+            # the operator is the exact Hessian's action, the factored matrix its
+            # block-diagonal model: GMRES to a tight tolerance keeps Newton quadratic
+            ksp.setType(PETSc.KSP.Type.GMRES)
+            ksp.setTolerances(rtol=KRYLOV_RTOL, max_it=KRYLOV_MAX_IT)
+        else:
+            ksp.setType(PETSc.KSP.Type.PREONLY)
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.CHOLESKY)
         pc.setFactorSolverType('mumps')

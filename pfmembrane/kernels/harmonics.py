@@ -1,0 +1,224 @@
+"""Phase fields with azimuthal harmonics on the (r, z) grid, on rank-local arrays.
+
+A scene that is not axisymmetric keeps the (r, z) grid and carries a set S of
+harmonics in the angle theta about the axis:
+
+    phi_h(r, z, theta) = sum_j r^m_j chi_j(r, z) T_j(theta),
+
+T_j = cos(m_j theta) or sin(m_j theta), chi_j on the solver's even max-ent
+basis; psi = r^m chi has the parity (-1)^m in r and vanishes to order m on the
+axis, as a smooth 3D field must (`kernels.azimuthal` gives the reasons). A
+scene with a dihedral symmetry of order n pays for m = 0, n, 2n, ..., J n;
+cosines alone where a mirror plane through the axis holds, sines too where
+none does. S = {cos 0} is the axisymmetric solver, term for term.
+
+The derivatives of r^m chi T follow from those of chi (`kernels.azimuthal`):
+
+    d/dr  = (r^m chi_r + m r^(m-1) chi) T,   d/dz = r^m chi_z T,
+    (1/r) d/dtheta = r^(m-1) chi T',
+    Lap   = (r^m Lap chi + 2 m r^(m-1) chi_r) T   (Lap chi: the axisymmetric one).
+
+Integrals in theta. The operators' weights w already integrate 2 pi r, so a 3D
+integral is sum_q w_q times the mean over theta. The integrands are
+trigonometric polynomials: W holds phi^3 (harmonics up to 3 J n), W^2 and the
+gradients' W W' T_j up to 6 J n. The trapezoid rule on N = 6 J + 1 points of
+one period 2 pi / n integrates every harmonic below N n exactly, so the
+discrete functionals are the exact theta integrals of the (r, z) quadrature.
+"""
+import numpy as np
+import scipy.sparse
+
+from pfmembrane.kernels.azimuthal import OPERATORS, ModeForms
+from pfmembrane.kernels.functionals import F_A, F_E, SQRT2
+
+
+class Harmonics:
+    """The set S: `highest` J (m = j `dihedral`, j = 0..J), cosines, and sines
+    (m >= 1) with `sines`. The first harmonic is cos 0, the axisymmetric part.
+    Not collective."""
+
+    def __init__(self, highest=0, dihedral=1, sines=False):
+        if highest < 0 or dihedral < 1:
+            raise ValueError(f"harmonics {highest} and dihedral order {dihedral}: "
+                             "need harmonics >= 0 and dihedral >= 1")
+        self.highest, self.dihedral, self.sines = int(highest), int(dihedral), bool(sines)
+        m = dihedral * np.arange(highest + 1)
+        self.m = np.concatenate([m, m[1:]]) if sines else m
+        self.sine = np.arange(len(self.m)) > highest
+        self.n_theta = 6 * self.highest + 1
+        self.theta = 2 * np.pi / dihedral * np.arange(self.n_theta) / self.n_theta
+        mt = np.outer(self.theta, self.m)
+        # T_j(theta_i) and dT_j / dtheta: (n_theta, nh)
+        self.T = np.where(self.sine, np.sin(mt), np.cos(mt))
+        self.dT = self.m * np.where(self.sine, np.cos(mt), -np.sin(mt))
+
+    def __len__(self):
+        return len(self.m)
+
+    def labels(self):
+        """'c0', 'c2', 's2', ...: the stored name of each harmonic."""
+        return [('s' if s else 'c') + str(m) for m, s in zip(self.m, self.sine)]
+
+
+class HarmonicForms:
+    """E, A, V, M of a field with harmonics `harmonics` on one grid's local
+    operators: values, gradients and Hessian-vector products.
+
+    Not collective. A field is a local array chi of shape (nlocal, nh), ghosts
+    included; the Dirichlet value -1 belongs to the axisymmetric harmonic (the
+    operators' offsets b0 ... enter it alone), the others vanish there.
+    """
+
+    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None):
+        self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
+        self._gram = gram
+        self.h = harmonics
+        r, m = ops.r[:, None], harmonics.m[None, :]
+        self.R = r ** m                                    # r^m
+        self.dR = m * r ** np.maximum(m - 1, 0)            # m r^(m-1)
+        self.R1 = r ** (m - 1.0)                           # r^(m-1), times T' (0 at m = 0)
+        self.w = ops.w[:, None]
+        nh = len(harmonics)
+        mean_T = harmonics.T.mean(axis=0)                  # 1 for cos 0, else 0 (exactly)
+        self.grad_V = 0.5 * (ops.B0.T @ (self.w * self.R * mean_T)).ravel()
+        self.grad_M = (ops.B0.T @ (self.w * self.R * mean_T * (ops.z - zc)[:, None])).ravel()
+        self.shape = (ops.B0.shape[1], nh)
+        self._interleaved = None
+
+    # -- fields ------------------------------------------------------------------
+    def _coefficients(self, chi):
+        o = self.ops
+        return o.B0 @ chi, o.Br @ chi, o.Bz @ chi, o.BL @ chi
+
+    def fields(self, chi, offsets=True):
+        """u, u_r, u_z, (1/r) u_theta, Lap u at the quadrature points x theta
+        points, each (nq, n_theta); without `offsets` (a direction) no
+        Dirichlet part."""
+        chi = np.reshape(chi, self.shape)
+        c, cr, cz, cl = self._coefficients(chi)
+        T, dT, R, dR = self.h.T.T, self.h.dT.T, self.R, self.dR
+        u = (R * c) @ T
+        ur = (R * cr + dR * c) @ T
+        uz = (R * cz) @ T
+        ut = (self.R1 * c) @ dT
+        lap = (R * cl + 2 * dR * cr) @ T
+        if offsets:
+            o = self.ops
+            u += o.b0[:, None]
+            ur += o.br[:, None]
+            uz += o.bz[:, None]
+            lap += o.bL[:, None]
+        return u, ur, uz, ut, lap
+
+    def _W(self, u, lap):
+        eps, s = self.eps, SQRT2 * self.c0
+        W = eps * lap + (u / eps + s) * (1.0 - u * u)
+        dW = 1.0 / eps - 3.0 * u * u / eps - 2.0 * s * u
+        d2W = -6.0 * u / eps - 2.0 * s
+        return W, dW, d2W
+
+    # -- transposes: a field's theta-weighted integrals back onto the chi_j -------
+    def _project(self, X, derivative=False):
+        """mean over theta of X T_j (or X T_j'): (nq, nh)."""
+        return X @ (self.h.dT if derivative else self.h.T) / self.h.n_theta
+
+    def _value_rows(self, P):
+        """B0^T w r^m P: P the projection of a factor of psi."""
+        return self.ops.B0.T @ (self.w * self.R * P)
+
+    def _laplacian_rows(self, P):
+        """The transpose of chi -> Lap psi against P."""
+        o = self.ops
+        return o.BL.T @ (self.w * self.R * P) + o.Br.T @ (self.w * 2 * self.dR * P)
+
+    def _gradient_rows(self, Pr, Pz, Pt):
+        """The transpose of chi -> (psi_r, psi_z, psi_theta / r) against
+        (Pr, Pz, Pt)."""
+        o, w = self.ops, self.w
+        return (o.Br.T @ (w * self.R * Pr) + o.B0.T @ (w * (self.dR * Pr + self.R1 * Pt))
+                + o.Bz.T @ (w * self.R * Pz))
+
+    # -- functionals ---------------------------------------------------------------
+    def _integrals(self, u, ur, uz, ut, W):
+        """Local parts of (E, A, V - |Omega|/2, M)."""
+        w, eps = self.ops.w, self.eps
+        mean = lambda X: np.dot(w, X.mean(axis=1))  # noqa: E731
+        return np.array([F_E * self.k / (2 * eps) * mean(W * W),
+                         F_A * mean(0.5 * eps * (ur * ur + uz * uz + ut * ut)
+                                    + (u * u - 1.0) ** 2 / (4 * eps)),
+                         0.5 * mean(u), mean(u * (self.ops.z - self.zc)[:, None])])
+
+    def values(self, chi):
+        """Local parts of (E, A, V - |Omega|/2, M)."""
+        u, ur, uz, ut, lap = self.fields(chi)
+        return self._integrals(u, ur, uz, ut, self._W(u, lap)[0])
+
+    def gradients(self, chi):
+        """Local values and the gradients of E and A (flat, as chi)."""
+        u, ur, uz, ut, lap = self.fields(chi)
+        W, dW, _ = self._W(u, lap)
+        eps, cE = self.eps, F_E * self.k / (2 * self.eps)
+        p = self._project
+        gE = 2 * cE * (eps * self._laplacian_rows(p(W)) + self._value_rows(p(W * dW)))
+        gA = F_A * (eps * self._gradient_rows(p(ur), p(uz), p(ut, True))
+                    + self._value_rows(p((u ** 3 - u) / eps)))
+        return self._integrals(u, ur, uz, ut, W), gE.ravel(), gA.ravel()
+
+    def hessian_action(self, chi, sigma, v):
+        """(Hess E - sigma Hess A) v, local contributions (flat); V and M are
+        linear. The coupled Hessian is never formed."""
+        u, _, _, _, lap = self.fields(chi)
+        W, dW, d2W = self._W(u, lap)
+        du, dur, duz, dut, dlap = self.fields(v, offsets=False)
+        eps, cE = self.eps, F_E * self.k / (2 * self.eps)
+        p = self._project
+        dWv = eps * dlap + dW * du   # the directional derivative of W
+        hE = 2 * cE * (eps * self._laplacian_rows(p(dWv))
+                       + self._value_rows(p(dWv * dW + W * d2W * du)))
+        hA = F_A * (eps * self._gradient_rows(p(dur), p(duz), p(dut, True))
+                    + self._value_rows(p((3 * u * u - 1.0) / eps * du)))
+        return (hE - sigma * hA).ravel()
+
+    def max_abs(self, chi):
+        """max |phi_h| over the local quadrature points and theta points."""
+        return float(np.abs(self.fields(chi)[0]).max(initial=0.0))
+
+    # -- the block-diagonal Hessian --------------------------------------------------
+    def pattern(self):
+        """The sparsity of the block-diagonal Hessian in the interleaved
+        numbering (node a, harmonic j) -> nh a + j: the grid's Hessian pattern
+        once per harmonic."""
+        return self._interleave()[0]
+
+    def _interleave(self):
+        if self._interleaved is None:
+            P, nh = self._gram().pattern, len(self.h)
+            counts = np.diff(P.indptr)
+            row = np.repeat(np.arange(len(counts)), counts)
+            first = P.indptr[row]
+            j = np.arange(nh)
+            # entry e of row a in harmonic j sits at nh p0 + j c_a + (e - p0)
+            where = (nh * first[:, None] + j * counts[row][:, None]
+                     + (np.arange(P.nnz) - first)[:, None])
+            indptr = np.concatenate([[0], np.cumsum(np.repeat(counts, nh))])
+            indices = np.empty(P.nnz * nh, dtype=P.indices.dtype)
+            indices[where] = nh * P.indices[:, None] + j
+            K = scipy.sparse.csr_matrix((np.zeros(P.nnz * nh), indices, indptr),
+                                        shape=(nh * P.shape[0], nh * P.shape[1]))
+            self._interleaved = (K, where)
+        return self._interleaved
+
+    def hessian(self, chi, sigma):
+        """Local block-diagonal Hessian diag(H_m) of the theta-averaged state
+        chi_0 (`azimuthal.ModeForms`, sines and cosines of one m sharing H_m),
+        on `pattern`: at an axisymmetric state the exact Hessian of
+        E - sigma A, elsewhere the Krylov solver's preconditioner."""
+        gram = self._gram()
+        chi = np.reshape(chi, self.shape)
+        forms = ModeForms(self.ops, gram, gram.blocks(OPERATORS), chi[:, 0], self.eps, self.k,
+                          self.c0, sigma, self.zc)
+        blocks = {m: forms.hessian(m).data for m in np.unique(self.h.m)}
+        K, where = self._interleave()
+        K = K.copy()
+        K.data[where] = np.column_stack([blocks[m] for m in self.h.m])
+        return K

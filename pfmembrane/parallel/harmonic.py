@@ -1,0 +1,133 @@
+"""PETSc layer of a field with azimuthal harmonics (`kernels.harmonics`).
+
+The unknowns are the harmonics' free nodal values, interleaved node by node
+(nh a + j), so each rank owns the harmonics of its own nodes and one ghost
+scatter moves all of them. The bordered matrix holds the block-diagonal
+Hessian diag(H_m) of the theta-averaged state: stage 1's Newton steps use it
+as a model Hessian (the line search and the inertia check keep them descent
+steps), stage 2 as the preconditioner of a Krylov solver whose operator is
+the exact bordered Hessian's action, never assembled.
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from pfmembrane.kernels.harmonics import HarmonicForms
+from pfmembrane.parallel.assembly import Assembly
+
+
+class Interleaved:
+    """A `partition.Layout`'s numbering with nh unknowns per free node.
+
+    Collective. The same owned ranges, scaled by nh; local arrays reshape to
+    (nodes, nh).
+    """
+
+    def __init__(self, layout, nh):
+        self.base, self.nh, self.comm = layout, nh, layout.comm
+        self.start, self.nowned, self.nglobal = nh * layout.start, nh * layout.nowned, \
+            nh * layout.nglobal
+        self.ghosts = self._expand(layout.ghosts)
+        self.local_numbers = self._expand(layout.local_numbers)
+        self.nlocal = len(self.local_numbers)
+        self.order = layout.order
+
+    def _expand(self, numbers):
+        return (self.nh * np.asarray(numbers)[:, None] + np.arange(self.nh)).ravel()
+
+    def create_vec(self):
+        return PETSc.Vec().createMPI((self.nowned, self.nglobal), comm=self.comm)
+
+    def create_ghosted(self):
+        return PETSc.Vec().createGhost(self.ghosts.astype(PETSc.IntType),
+                                       size=(self.nowned, self.nglobal), comm=self.comm)
+
+    def vec(self, phi):
+        """The Vec of nodal harmonics `phi` (nodes x nh, every node)."""
+        b = self.base
+        x = self.create_vec()
+        x.setArray(np.asarray(phi)[b.order[b.start:b.start + b.nowned]].ravel())
+        return x
+
+    def nodal(self, x, fill=-1.0):
+        """Nodal harmonics (nodes x nh) on every rank: `fill` on the Dirichlet
+        nodes for the axisymmetric harmonic, 0 for the others. Collective."""
+        b, nh = self.base, self.nh
+        part = b.create_vec()
+        out = []
+        for j in range(nh):
+            part.setArray(x.getArray(readonly=True)[j::nh])
+            out.append(b.nodal(part, fill if j == 0 else 0.0))
+        part.destroy()
+        return np.column_stack(out)
+
+
+class HarmonicAssembly(Assembly):
+    """`Assembly` of a field with the harmonics `harmonics`. Collective."""
+
+    krylov = True
+
+    def __init__(self, grid, eps, k, c0, targets, zc, harmonics):
+        if grid.plane is not None and np.any(harmonics.sine):
+            raise ValueError("sines with a half box: not supported")
+        layout = Interleaved(grid.layout, len(harmonics))
+        forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram)
+        self.harmonics = harmonics
+        super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
+        self._state = None
+        self._J = None
+
+    def local_pattern(self):
+        return self.forms.pattern()
+
+    def max_abs_phi(self, x):
+        return self.mpi.allreduce(self.forms.max_abs(self.local(x)), op=MPI.MAX)
+
+    def assemble_bordered(self, x, sigma, C, diag):
+        """The bordered block-diagonal matrix, and the state of the exact
+        operator (`jacobian_operator`)."""
+        self._state = (self.local(x), sigma, C, diag)
+        return super().assemble_bordered(x, sigma, C, diag)
+
+    def jacobian_operator(self):
+        """A shell matrix: [[H, -C^T], [-C, diag]] applied, H the exact Hessian
+        of E - sigma A at the last `assemble_bordered` state."""
+        if self._J is None:
+            K = self.bordered_matrix()
+            self._J = PETSc.Mat().createPython(K.getSizes(), _BorderedAction(self),
+                                               comm=self.comm)
+            self._J.setUp()
+        return self._J
+
+    def hessian_action(self, v, out):
+        """out = H v at the last state (v, out distributed Vecs)."""
+        chi, sigma = self._state[:2]
+        with self.log['Hessian']:
+            local = self.forms.hessian_action(chi, sigma, self.local(v))
+        return self._to_global(local, out)
+
+
+class _BorderedAction:
+    """The shell's context: the bordered Hessian's action through the kernel."""
+
+    def __init__(self, assembly):
+        self.a = assembly
+        self.v, self.hv = assembly.create_vec(), assembly.create_vec()
+
+    def mult(self, mat, X, Y):
+        a = self.a
+        nl, ncon = a.layout.nowned, a.ncon
+        size = a.comm.getSize()
+        last = a.comm.getRank() == size - 1
+        self.v.setArray(X.getArray(readonly=True)[:nl])
+        dnu = a.mpi.bcast(X.getArray(readonly=True)[nl:].copy() if last else None,
+                          root=size - 1)
+        _, _, C, diag = a._state
+        a.hessian_action(self.v, self.hv)
+        for j in range(ncon):
+            self.hv.axpy(-dnu[j], C[j])
+        y = Y.getArray()
+        y[:nl] = self.hv.getArray(readonly=True)
+        dots = [c.dot(self.v) for c in C]
+        if last:
+            y[nl:] = -np.array(dots) + diag * np.asarray(dnu)

@@ -1,0 +1,163 @@
+"""Fields with azimuthal harmonics (kernels.harmonics, parallel.harmonic): the
+axisymmetric set equals the axisymmetric assembly, gradients and Hessian-vector
+products equal central differences for harmonics up to m = 6, the block-diagonal
+Hessian is the exact one at an axisymmetric state, and two ranks give one rank's
+numbers.
+
+Collective: runs on one rank under pytest and on two under `mpiexec -n 2`.
+"""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from pfmembrane.kernels import nodes
+from pfmembrane.kernels.harmonics import Harmonics
+from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
+from pfmembrane.parallel.assembly import Assembly
+from pfmembrane.parallel.discretization import Discretization
+from pfmembrane.parallel.harmonic import HarmonicAssembly
+
+BOX, R, EPS, C0 = (1.0, 1.4), 0.4, 0.12, 0.7
+A0, V0 = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
+SIGMA = 0.9  # a tension for E - sigma A
+
+
+def _nodes():
+    xy = nodes.uniform(BOX, 700)
+    xy[:, 0] = BOX[0] * (xy[:, 0] / BOX[0]) ** 1.3  # graded: per-node beta_a
+    return xy
+
+
+def _state(xy, harmonics, amplitude=0.2):
+    """Nodal harmonics: an oblate spheroid's phi and, in every other harmonic,
+    a smooth bump on its membrane (functions of the node, the same on any
+    rank count)."""
+    a, c = spheroid_axes(A0, V0, 'oblate')
+    phi = spheroid_phi(xy, a, c, BOX[1] / 2, EPS)
+    out = np.zeros((len(xy), len(harmonics)))
+    out[:, 0] = phi
+    for j in range(1, len(harmonics)):
+        out[:, j] = amplitude * (1 - phi ** 2) * np.cos(3 * xy[:, 1] + j) / (j + 1)
+    return out
+
+
+def _assembly(comm, xy, harmonics):
+    grid = Discretization(comm, xy, BOX, gamma=0.8, cutoff=1e-6, degree=4)
+    return HarmonicAssembly(grid, EPS, 1.0, C0, (A0, V0), BOX[1] / 2, harmonics)
+
+
+@pytest.fixture(scope='module', params=[(6, 1), (3, 2)], ids=['m=0..6', 'm=0,2,4,6'])
+def problem(request):
+    xy = _nodes()
+    h = Harmonics(*request.param)
+    P = _assembly(PETSc.COMM_WORLD, xy, h)
+    return P, P.layout.vec(_state(xy, h)), xy
+
+
+def _direction(P, seed):
+    d = P.create_vec()
+    full = np.random.default_rng(seed).standard_normal(P.layout.nglobal)
+    d.setArray(full[P.layout.start:P.layout.start + P.layout.nowned])
+    return d
+
+
+def test_the_axisymmetric_set_is_the_axisymmetric_assembly():
+    xy = _nodes()
+    comm = PETSc.COMM_WORLD
+    grid = Discretization(comm, xy, BOX, gamma=0.8, cutoff=1e-6, degree=4)
+    P0 = Assembly(grid, EPS, 1.0, C0, (A0, V0), BOX[1] / 2)
+    P1 = HarmonicAssembly(grid, EPS, 1.0, C0, (A0, V0), BOX[1] / 2, Harmonics(0))
+    phi = _state(xy, Harmonics(0))
+    x0, x1 = P0.layout.vec(phi[:, 0]), P1.layout.vec(phi)
+    g = [P.create_vec() for P in (P0, P0, P1, P1)]
+    v0, v1 = P0.gradients(x0, g[0], g[1]), P1.gradients(x1, g[2], g[3])
+    assert np.allclose(v0, v1, rtol=1e-13, atol=0)
+    for a, b in ((g[0], g[2]), (g[1], g[3]), (P0.grad_V, P1.grad_V), (P0.grad_M, P1.grad_M)):
+        assert (a - b).norm() <= 1e-13 * a.norm()
+    C = [g[1], P0.grad_V, P0.grad_M]
+    K0 = P0.assemble_bordered(x0, SIGMA, C, 0.0)
+    K1 = P1.assemble_bordered(x1, SIGMA, [g[3], P1.grad_V, P1.grad_M], 0.0)
+    X, Y0 = K0.createVecs()
+    X.setRandom(PETSc.Random().create(comm))
+    Y1, Y2 = Y0.duplicate(), Y0.duplicate()
+    K0.mult(X, Y0)
+    K1.mult(X, Y1)
+    P1.jacobian_operator().mult(X, Y2)  # the exact action, through the kernel
+    assert (Y0 - Y1).norm() <= 1e-12 * Y0.norm()
+    assert (Y0 - Y2).norm() <= 1e-12 * Y0.norm()
+
+
+def test_gradients_match_central_differences(problem):
+    # Central differences at t = 1e-6: truncation t^2 |E'''| and rounding 1e-16 E / t
+    # both near 1e-10 relative; measured 5e-9 at most on these states.
+    P, x, _ = problem
+    gE, gA = P.create_vec(), P.create_vec()
+    P.gradients(x, gE, gA)
+    d = _direction(P, 1)
+    t = 1e-6
+    fd = (P.values(x + t * d) - P.values(x - t * d)) / (2 * t)
+    for i, g in enumerate((gE, gA, P.grad_V, P.grad_M)):
+        exact = g.dot(d)
+        assert abs(fd[i] - exact) <= 1e-7 * max(abs(exact), g.norm() * d.norm() * 1e-3), (i, fd[i],
+                                                                                       exact)
+
+
+def test_hessian_action_matches_differences_of_the_gradient(problem):
+    P, x, _ = problem
+    C = [P.create_vec(), P.grad_V, P.grad_M]
+    P.assemble_bordered(x, SIGMA, C, 0.0)  # the state of the action
+    d = _direction(P, 2)
+    Hd = P.hessian_action(d, P.create_vec())
+    t = 1e-6
+    diff = []
+    for s in (1, -1):
+        gE, gA = P.create_vec(), P.create_vec()
+        P.gradients(x + s * t * d, gE, gA)
+        diff.append(gE - SIGMA * gA)
+    fd = (diff[0] - diff[1]) / (2 * t)
+    # measured 1e-11 relative (as the gradients: t^2 and 1e-16 / t terms)
+    assert (fd - Hd).norm() <= 1e-8 * Hd.norm()
+
+
+def test_the_block_diagonal_is_the_hessian_at_an_axisymmetric_state(problem):
+    P, x, xy = problem
+    state = _state(xy, P.harmonics)
+    state[:, 1:] = 0.0
+    x0 = P.layout.vec(state)
+    gE, gA = P.create_vec(), P.create_vec()
+    P.gradients(x0, gE, gA)
+    K = P.assemble_bordered(x0, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
+    X, Y = K.createVecs()
+    X.setRandom(PETSc.Random().create(P.comm))
+    Z = Y.duplicate()
+    K.mult(X, Y)
+    P.jacobian_operator().mult(X, Z)
+    assert (Y - Z).norm() <= 1e-11 * Y.norm()
+    # and not away from it: the harmonics couple there
+    P.assemble_bordered(x, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
+    K.mult(X, Y)
+    P.jacobian_operator().mult(X, Z)
+    assert (Y - Z).norm() > 1e-3 * Y.norm()
+
+
+def test_two_ranks_give_one_ranks_numbers(problem, distributed):
+    P, x, xy = problem
+    comm = PETSc.COMM_WORLD
+    gE, gA = P.create_vec(), P.create_vec()
+    values = P.gradients(x, gE, gA)
+    P.assemble_bordered(x, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
+    d = _direction(P, 3)
+    Hd = P.hessian_action(d, P.create_vec())
+    nodal = [P.layout.nodal(v, 0.0) for v in (gE, gA, Hd, d)]
+    if comm.getRank() == 0:
+        S = _assembly(PETSc.COMM_SELF, xy, P.harmonics)
+        xs = S.layout.vec(_state(xy, P.harmonics))
+        sE, sA = S.create_vec(), S.create_vec()
+        # M vanishes by symmetry: its rounding compares against E's scale
+        assert np.allclose(S.gradients(xs, sE, sA), values, rtol=1e-13,
+                           atol=1e-13 * np.abs(values).max())
+        S.assemble_bordered(xs, SIGMA, [sA, S.grad_V, S.grad_M], 0.0)
+        sd = S.layout.vec(nodal[3])
+        serial = [S.layout.nodal(v, 0.0) for v in (sE, sA, S.hessian_action(sd, S.create_vec()))]
+        for a, b in zip(serial, nodal):
+            assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
