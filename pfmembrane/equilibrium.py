@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 from mpi4py import MPI
 
-from pfmembrane.analysis.checks import phase_field_checks
+from pfmembrane.analysis.checks import phase_field_checks, surface_checks
 from pfmembrane.grid import Grid
 from pfmembrane.io.options import UsageError
 from pfmembrane.kernels.azimuthal import RIGID
@@ -105,6 +105,9 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     if scene.harmonics:
         attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
                      dihedral=scene.dihedral)
+        if converged and checks:
+            attrs.update(surface_checks(mpi, grid.nodes, phi, attrs, grid.discrete.beta,
+                                        grid.plane))
     elif converged and checks:  # an interrupted run checkpoints at once
         attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,

@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pfmembrane.io import checkpoint
-from pfmembrane.kernels.basis import locality
 from pfmembrane.scene import Scene
 
 # The multipliers' attribute names: L = E - nu . (c - c0), c = (A, V, M).
@@ -17,9 +16,11 @@ MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
 class Result:
     """A solved (or stopped) state: nodes and nodal phi on every rank, and the
     checkpoint attributes (`io.checkpoint`): energy, area, volume, moment, the
-    multipliers, eps, the scene, converged, times. `grid` is the grid it was
-    solved on (None for a result read from a file); `unused_options` the
-    options given to its solve that nothing used."""
+    multipliers, eps, the scene, converged, times. With azimuthal harmonics phi
+    is (nodes x nh), the nodal chi_j of the m in attrs['harmonics'] (column 0
+    the axisymmetric part). `grid` is the grid it was solved on (None for a
+    result read from a file); `unused_options` the options given to its solve
+    that nothing used."""
     nodes: np.ndarray
     phi: np.ndarray
     attrs: dict
@@ -96,9 +97,7 @@ class Result:
         its grid's, when it has its grid."""
         if self.grid is not None and self.grid.discrete.plane == plane:
             return self.grid.discrete.beta
-        b = self.basis
-        return locality(self.nodes, b['gamma'], b['spacing_smoothing'], plane,
-                        b['spacing_floor'])
+        return checkpoint.locality(self.nodes, self.attrs, plane)
 
     def checkpoint(self):
         return checkpoint.Checkpoint(self.nodes, self.phi, self.attrs, self.datasets)
@@ -114,16 +113,23 @@ class Result:
         return Result(ck.nodes, ck.phi, ck.attrs, message=self.message, status=self.status)
 
     def save(self, path):
-        """Write the checkpoint and its `.xdmf` beside it, atomically.
+        """Write the checkpoint and its `.xdmf` beside it, atomically: with
+        harmonics, phi_h sampled in 3D and its description (`io.checkpoint`).
 
         Collective on the grid's communicator (serial for a result read back).
         """
         comm = self.grid.comm.tompi4py() if self.grid is not None else None
         triangles = (self.grid.discrete.triangles if self.grid is not None
                      else self.datasets.get('triangles'))
+        sample = None
+        if np.ndim(self.phi) == 2:
+            from pfmembrane.analysis import field3d
+            # the grid's locality, if it has it; without, rank 0 computes it
+            beta = self.locality(self.checkpoint().plane) if self.grid is not None else None
+            sample = lambda nodes, phi, attrs: field3d.sample(nodes, phi, attrs, beta)  # noqa: E731
         checkpoint.write(path, self.nodes, self.phi, self.attrs, comm=comm,
                          datasets={k: v for k, v in self.datasets.items() if k != 'triangles'},
-                         triangles=triangles)
+                         triangles=triangles, sample=sample)
         self.path = str(path)
         return self
 

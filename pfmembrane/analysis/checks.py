@@ -2,7 +2,7 @@
 the box, the level set's topology and own energy, the sharp-interface shape's."""
 import numpy as np
 
-from pfmembrane.analysis import levelset
+from pfmembrane.analysis import field3d, levelset
 from pfmembrane.io import checkpoint
 
 # The topologies of phi_h = 0 of one component, whose level-set energy (the sharp-limit
@@ -65,4 +65,29 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
                               level_set_energy=c['energy_level_set'])
         except (ValueError, RuntimeError) as e:
             result['sharp_note'] = f"no comparison ({e})"
+    return mpi.bcast(result, root=0)
+
+
+def surface_checks(mpi, xy, phi, attrs, beta, plane=None):
+    """The checks of a field with harmonics, from its 3D level set phi_h = 0
+    (`analysis.field3d`): ``components``, ``genus`` (the sum over the
+    components, from their Euler characteristics), ``topology`` ('1 sphere',
+    '1 torus', '2 spheres' ... by component and genus) and ``level_set_energy``
+    (its Canham-Helfrich energy, each component with its orientation), with
+    ``level_set_area`` and ``level_set_volume`` and ``level_set_step`` (the
+    marching step). Rank 0 computes."""
+    result = {}
+    if mpi.Get_rank() == 0:
+        box, eps = tuple(attrs['box']), float(attrs['eps'])
+        sine = np.zeros(len(attrs['harmonics']), bool)
+        field = field3d.Harmonic3D.of(xy, phi, attrs['harmonics'], sine, box, eps, beta,
+                                      float(attrs['cutoff']), plane)
+        m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']))
+        kinds = ['torus' if p['genus'] == 1 else 'sphere' if p['genus'] == 0
+                 else f"genus-{p['genus']:g} surface" for p in m.per_component]
+        label = ', '.join(f"{kinds.count(k)} {k}{'s' if kinds.count(k) > 1 else ''}"
+                          for k in dict.fromkeys(kinds)) or 'no surface'
+        result.update(components=m.components, genus=m.genus, topology=label,
+                      level_set_energy=m.energy, level_set_area=m.area,
+                      level_set_volume=m.volume, level_set_step=field3d.MARCH * eps)
     return mpi.bcast(result, root=0)

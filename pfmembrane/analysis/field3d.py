@@ -15,12 +15,15 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from pfmembrane.analysis import surface
+from pfmembrane.io import checkpoint
 from pfmembrane.kernels.basis import folded_basis
 from pfmembrane.kernels.maxent import interpolate
 
 RASTER = 1.0 / 6      # raster step, in eps
 MARCH = 0.5           # marching-tetrahedra step, in eps
 R_AXIS = 1e-9         # 1/r terms are taken at r >= R_AXIS (their limits are finite)
+SAMPLE_STEP = 0.5     # a checkpoint's phi3d: its step, in eps ...
+SAMPLE_POINTS = 2_000_000  # ... coarsened to keep it at most this many points
 
 
 @dataclass
@@ -142,3 +145,55 @@ def measure(field, box, eps, k, c0, step=None):
     lower = np.array([-Rb + shift, -Rb + shift, 0.0 + shift])
     upper = np.array([Rb, Rb, Zb])
     return surface.measure(field, lower, upper, step, k=k, c0=c0)
+
+
+def sample(nodes, phi, attrs, beta=None):
+    """phi_h of nodal harmonics `phi` (N x nh, with their checkpoint
+    attributes `attrs`) on the Cartesian grid of the box: x, y in [-Rb, Rb], z
+    in [0, Zb] (the mirror image of a half box included), steps near
+    SAMPLE_STEP eps, coarsened to at most SAMPLE_POINTS points.
+
+    Not collective. `beta`: the basis's locality at the nodes, if the caller
+    has it (`io.checkpoint.locality` otherwise). phi_h is `Harmonic3D`'s;
+    beyond the cylinder r = Rb its splines hold their values at r = Rb, where
+    phi_h = -1.
+
+    Returns
+    -------
+    values : ndarray, shape (nz, ny, nx)
+        phi_h at origin + (i, j, k) * step in values[k, j, i].
+    origin, step : ndarray, shape (3,)
+        (x, y, z) of the first point and the steps along x, y, z.
+    """
+    ckpt = checkpoint.Checkpoint(nodes, phi, attrs)
+    layout = checkpoint.harmonic_set(attrs, phi.shape[1])
+    box, eps = ckpt.box, float(attrs["eps"])
+    if beta is None:
+        beta = checkpoint.locality(nodes, attrs, ckpt.plane)
+    field_h = Harmonic3D.of(nodes, phi, layout.m, layout.sine, box, eps, beta,
+                                    checkpoint.basis(attrs)["cutoff"], ckpt.plane)
+    origin = np.array([-box[0], -box[0], 0.0])
+    lengths = np.array([2.0 * box[0], 2.0 * box[0], box[1]])
+    counts = _sample_counts(lengths, SAMPLE_STEP * eps)
+    step = lengths / (counts - 1)
+    x, y, z = (origin[a] + step[a] * np.arange(counts[a]) for a in range(3))
+    values = np.empty(counts[::-1])
+    Y, X = np.meshgrid(y, x, indexing="ij")            # (ny, nx), x fastest
+    slabs = max(1, 2 ** 18 // X.size)                  # about 2^18 points a call
+    for k in range(0, len(z), slabs):
+        zk = z[k:k + slabs]
+        points = np.column_stack([np.tile(X.ravel(), len(zk)), np.tile(Y.ravel(), len(zk)),
+                                  np.repeat(zk, X.size)])
+        values[k:k + len(zk)] = field_h(points)[0].reshape(len(zk), *X.shape)
+    return values, origin, step
+
+
+def _sample_counts(lengths, step):
+    """Points along each of `lengths` at spacings at most `step`, the step
+    grown until they number at most SAMPLE_POINTS in all."""
+    while True:
+        counts = np.ceil(lengths / step - 1e-9).astype(np.int64) + 1
+        total = int(np.prod(counts))
+        if total <= SAMPLE_POINTS:
+            return counts
+        step *= max((total / SAMPLE_POINTS) ** (1.0 / 3.0), 1.0 + 1e-3)

@@ -34,7 +34,8 @@ def start_of(p, comm, cache, start=None):
     given) and the scene, whose box is the checkpoint's on a restart and `auto`
     sized for a fresh start."""
     if not p.restart:
-        scene = pf.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric)
+        scene = pf.Scene(p.reduced_volume, p.c0, p.radius, p.k, p.box, p.branch, p.symmetric,
+                         p.harmonics, p.dihedral, p.mirror)
         scene = scene.sized(p.eps)
         check_fits(scene, p.eps)
         return None, scene
@@ -48,7 +49,8 @@ def start_of(p, comm, cache, start=None):
             f"-pf_restart {p.restart} holds a {'half' if half else 'full'}-box solution: "
             f"{'add' if half else 'remove'} -pf_symmetric to continue it")
     return start, pf.Scene(p.reduced_volume, p.c0, p.radius, p.k,
-                            tuple(start.attrs['box']), p.branch, p.symmetric)
+                           tuple(start.attrs['box']), p.branch, p.symmetric, p.harmonics,
+                           p.dihedral, p.mirror)
 
 
 def grid_of(p, scene, start, comm, cache):

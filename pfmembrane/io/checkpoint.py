@@ -8,6 +8,20 @@ state: ``energy``, ``area``, ``volume``, ``moment``, ``eps``, ``k``, ``c0``,
 ``"pfmembrane-checkpoint"`` and ``version`` = 1.  Further attributes and
 datasets are stored and returned unchanged.
 
+Version 2 is the state of a scene with azimuthal harmonics
+(`kernels.harmonics`): ``phi`` is N x nh, column j the nodal chi_j of
+phi_h = sum_j r^m_j chi_j(r, z) T_j(theta), column 0 the axisymmetric part;
+the root attributes ``harmonics`` (the m of each column, integers),
+``harmonics_highest`` (J) and ``dihedral`` (n) say which (the layout of
+`kernels.harmonics.Harmonics`: the cosines m = 0, n, ..., J n, then the sines
+m = n, ..., J n if there are 2 J + 1 columns). Such a file also holds the
+dataset ``phi3d``, phi_h sampled on a Cartesian grid of the box (x, y in
+[-Rb, Rb], z in [0, Zb]; shape (nz, ny, nx), x varying fastest) with the
+attributes ``origin`` and ``step``, each (x, y, z): phi3d[k, j, i] is phi_h at
+origin + (i, j, k) * step. It is derived from ``nodes`` and ``phi`` at every
+write, and `read` leaves it in the file.  An axisymmetric state is written as
+version 1, so files of either kind read as they did.
+
 Files are replaced atomically: a process killed at any moment leaves at the
 target path either the previous complete file or the new complete one.
 """
@@ -23,20 +37,26 @@ import h5py
 import numpy as np
 import scipy.spatial
 
+from pfmembrane.kernels.basis import locality as _locality
+from pfmembrane.kernels.harmonics import Harmonics
 from pfmembrane.kernels.nodes import unfold
 
-__all__ = ["SCHEMA", "VERSION", "CheckpointError", "Checkpoint", "write",
-           "read", "write_xdmf", "basis", "BRANCH_SCHEMA", "BRANCH_VERSION",
-           "write_branch", "read_branch"]
+__all__ = ["SCHEMA", "VERSION", "VERSIONS", "CheckpointError", "Checkpoint",
+           "write", "read", "write_xdmf", "basis", "locality", "harmonic_set",
+           "BRANCH_SCHEMA", "BRANCH_VERSION", "write_branch",
+           "read_branch"]
 
 SCHEMA = "pfmembrane-checkpoint"
-VERSION = 1
+VERSION = 2               # the newest; a file's is the one of its content
+VERSIONS = (1, 2)         # 1: phi (N,); 2: phi (N, nh) with its harmonics
 
 FLOAT_ATTRS = ("energy", "area", "volume", "moment", "eps", "k", "c0",
                "gamma", "nu_area", "nu_volume", "wall_time")
 INT_ATTRS = ("converged", "n_procs")
 REQUIRED_ATTRS = ("schema", "version", "box") + FLOAT_ATTRS + INT_ATTRS
+HARMONIC_ATTRS = ("harmonics", "harmonics_highest", "dihedral")
 ARRAYS = ("nodes", "phi")
+SAMPLED = "phi3d"         # version 2: phi_h on a Cartesian grid, for ParaView
 BOX_TOLERANCE = 1e-12
 
 
@@ -53,12 +73,13 @@ class Checkpoint:
     ----------
     nodes : ndarray, shape (N, 2)
         Node coordinates (r, z).
-    phi : ndarray, shape (N,)
-        Phase field at the nodes.
+    phi : ndarray, shape (N,) or (N, nh)
+        Phase field at the nodes; with harmonics (version 2) the nodal chi_j,
+        column 0 the axisymmetric part.
     attrs : dict
         Root attributes; numbers as Python scalars, ``box`` as an array.
     datasets : dict
-        Datasets other than ``nodes`` and ``phi``, by name.
+        Datasets other than ``nodes``, ``phi`` and ``phi3d``, by name.
     """
 
     nodes: np.ndarray
@@ -76,6 +97,11 @@ class Checkpoint:
     def symmetric(self):
         """Whether the nodes fill the half box z >= Zb / 2 of a mirror-symmetric solve."""
         return bool(self.attrs.get("symmetric", 0))
+
+    @property
+    def plane(self):
+        """z of the mirror plane of a half-box state, None on the full box."""
+        return 0.5 * self.box[1] if self.symmetric else None
 
     def unfolded(self):
         """This state on the full box: a half-box solution with its mirror
@@ -95,8 +121,41 @@ def basis(attrs):
                 spacing_floor=float(attrs.get('spacing_floor', 0.0)))
 
 
-def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):
-    """Write a checkpoint atomically, and with `triangles` its XDMF description.
+def locality(nodes, attrs, plane=None):
+    """beta_a at `nodes` of the basis of a checkpoint's attributes (`basis`),
+    `plane` the mirror plane of a half box or None. Not collective."""
+    b = basis(attrs)
+    return _locality(nodes, b['gamma'], b['spacing_smoothing'], plane, b['spacing_floor'])
+
+
+def harmonic_set(attrs, nh):
+    """The `kernels.harmonics.Harmonics` of the nh columns of a version-2 phi
+    with attributes `attrs`: its ``harmonics_highest`` J and ``dihedral`` n,
+    sines beside the cosines if nh = 2 J + 1. Raises CheckpointError if an
+    attribute is missing or ``harmonics`` is not their m."""
+    missing = [key for key in HARMONIC_ATTRS if key not in attrs]
+    if missing:
+        raise CheckpointError(f"missing attribute {missing[0]!r} (phi has {nh} "
+                              f"harmonics)")
+    m = np.asarray(attrs["harmonics"])
+    try:
+        highest, dihedral = int(attrs["harmonics_highest"]), int(attrs["dihedral"])
+        layout = Harmonics(highest, dihedral, sines=nh > highest + 1)
+    except (TypeError, ValueError) as exc:
+        raise CheckpointError(f"attributes 'harmonics_highest' and 'dihedral' "
+                              f"({attrs['harmonics_highest']!r}, "
+                              f"{attrs['dihedral']!r}): {_one_line(exc)}") from exc
+    if m.shape != layout.m.shape or not np.array_equal(m, layout.m):
+        raise CheckpointError(f"attribute 'harmonics' {m.tolist()} is not the m of "
+                              f"{nh} columns of harmonics up to J = {highest} of "
+                              f"dihedral order {dihedral}")
+    return layout
+
+
+def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None, sample=None):
+    """Write a checkpoint atomically, and its XDMF description: with
+    `triangles` that of the (r, z) nodes, and always that of ``phi3d`` for a
+    phi with harmonics (version 2).
 
     Collective.  Only the arguments given on rank 0 are used (the other ranks
     may pass None); rank 0 writes and every rank returns or raises the same
@@ -108,11 +167,13 @@ def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):
         Checkpoint file to create or replace.
     nodes : array_like, shape (N, 2)
         Node coordinates (r, z).
-    phi : array_like, shape (N,)
-        Phase field at the nodes.
+    phi : array_like, shape (N,) or (N, nh)
+        Phase field at the nodes, or its harmonics (version 2).
     attrs : dict
         Root attributes: all of the schema's (``schema`` and ``version`` may
-        be omitted; ``n_procs`` defaults to the size of `comm`) plus any
+        be omitted, a given version is replaced by the one of `phi`;
+        ``n_procs`` defaults to the size of `comm`), for harmonics
+        ``harmonics``, ``harmonics_highest`` and ``dihedral``, plus any
         scalars, strings or small arrays to store alongside.
     comm : mpi4py.MPI.Comm, optional
         Communicator; None for a serial call.
@@ -120,7 +181,12 @@ def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):
         Extra datasets (e.g. ``nu``, ``dirichlet``) by name.
     triangles : array_like of int, shape (M, 3), optional
         Node indices of the triangles, stored as dataset ``triangles`` and
-        described, with the nodes and phi, by ``<path stem>.xdmf``.
+        described, with the nodes and phi, by ``<path stem>.xdmf`` (for a
+        phi with harmonics, that file describes ``phi3d`` instead).
+    sample : callable, optional
+        For a phi with harmonics: sample(nodes, phi, attrs) -> (values (nz, ny,
+        nx), origin, step), phi_h on a Cartesian grid for ``phi3d``
+        (`analysis.field3d.sample`), called on rank 0.
 
     Raises
     ------
@@ -135,9 +201,18 @@ def write(path, nodes, phi, attrs, comm=None, datasets=None, triangles=None):
         if triangles is not None:
             extra["triangles"] = _check_triangles(triangles, len(phi))
         arrays, stored_attrs = _prepare(nodes, phi, attrs, extra, n_procs)
-        _replace_atomically(path, lambda tmp: _fill(tmp, arrays, stored_attrs))
-        if triangles is not None:
-            _write_sidecar(path, len(phi), len(extra["triangles"]))
+        sampled = None
+        if arrays["phi"].ndim == 2:
+            if sample is None:
+                raise CheckpointError("a phi with harmonics is written with its 3D sample")
+            sampled = sample(arrays["nodes"], arrays["phi"], stored_attrs)
+        _replace_atomically(path, lambda tmp: _fill(tmp, arrays, stored_attrs, sampled))
+        if sampled is not None:
+            _write_sidecar(path, _xdmf_3d_text(os.path.basename(path), *sampled[0].shape,
+                                               *sampled[1:]))
+        elif triangles is not None:
+            _write_sidecar(path, _xdmf_text(os.path.basename(path), len(phi),
+                                            len(extra["triangles"])))
 
     _on_root(comm, action, f"cannot write checkpoint {path}")
 
@@ -178,7 +253,9 @@ def write_xdmf(h5path, triangles=None):
 
     Not collective.  The triangles are stored as dataset ``triangles`` in the
     checkpoint (replaced atomically like the checkpoint itself), so that the
-    XDMF file only refers to data in the ``.h5`` file.
+    XDMF file only refers to data in the ``.h5`` file.  For a checkpoint with
+    harmonics (version 2) the file describes its ``phi3d`` (see the module's
+    description) rather than the (r, z) nodes.
 
     Parameters
     ----------
@@ -201,14 +278,19 @@ def write_xdmf(h5path, triangles=None):
     h5path = os.fspath(h5path)
     ckpt = read(h5path)
     n_nodes = len(ckpt.phi)
+    name = os.path.basename(h5path)
     try:
         if triangles is None:
             triangles = scipy.spatial.Delaunay(ckpt.nodes).simplices
         triangles = _check_triangles(triangles, n_nodes)
+        if ckpt.phi.ndim == 2:
+            text = _xdmf_3d_text(name, *_sampled_layout(h5path))
+        else:
+            text = _xdmf_text(name, n_nodes, len(triangles))
         _replace_atomically(h5path,
                             lambda tmp: _add_triangles(h5path, tmp, triangles))
-        return _write_sidecar(h5path, n_nodes, len(triangles))
-    except (CheckpointError, OSError, ValueError,
+        return _write_sidecar(h5path, text)
+    except (CheckpointError, OSError, ValueError, KeyError,
             scipy.spatial.QhullError) as exc:
         raise CheckpointError(f"cannot write XDMF for {h5path}: "
                               f"{_one_line(exc)}") from exc
@@ -225,12 +307,21 @@ def _check_triangles(triangles, n_nodes):
     return triangles.astype(np.int64)
 
 
-def _write_sidecar(h5path, n_nodes, n_triangles):
-    """The XDMF file beside `h5path`, which holds the ``triangles`` dataset."""
+def _write_sidecar(h5path, text):
+    """The XDMF file beside `h5path` (`text`, of `_xdmf_text` or `_xdmf_3d_text`)."""
     xdmf = os.path.splitext(h5path)[0] + ".xdmf"
-    text = _xdmf_text(os.path.basename(h5path), n_nodes, n_triangles)
     _replace_atomically(xdmf, lambda tmp: _write_text(tmp, text))
     return xdmf
+
+
+def _sampled_layout(h5path):
+    """nz, ny, nx, origin and step of the ``phi3d`` of a version-2 checkpoint."""
+    with h5py.File(h5path, "r") as h5:
+        if SAMPLED not in h5:
+            raise CheckpointError(f"no dataset {SAMPLED!r} (phi has harmonics)")
+        sampled = h5[SAMPLED]
+        return (*sampled.shape, np.asarray(sampled.attrs["origin"]),
+                np.asarray(sampled.attrs["step"]))
 
 
 def _on_root(comm, action, context):
@@ -259,24 +350,30 @@ def _prepare(nodes, phi, attrs, datasets, n_procs):
     stored types."""
     nodes = np.asarray(nodes, dtype=np.float64)
     phi = np.asarray(phi, dtype=np.float64)
-    _check_arrays(nodes, phi)
+    _check_arrays(nodes, phi, harmonic=True)
     arrays = {"nodes": nodes, "phi": phi}
     for name, data in (datasets or {}).items():
-        if name in ARRAYS:
+        if name in ARRAYS + (SAMPLED,):
             raise CheckpointError(f"extra dataset {name!r} would replace the "
                                   f"schema's one")
         arrays[name] = np.asarray(data)
 
     stored = dict(attrs)
     stored.setdefault("schema", SCHEMA)
-    stored.setdefault("version", VERSION)
+    stored.setdefault("version", _version(phi))
     stored.setdefault("n_procs", n_procs)
     missing = [key for key in REQUIRED_ATTRS if key not in stored]
     if missing:
         raise CheckpointError(f"missing attribute {missing[0]!r}")
-    if stored["schema"] != SCHEMA or stored["version"] != VERSION:
+    if stored["schema"] != SCHEMA or stored["version"] not in VERSIONS:
         raise CheckpointError(f"attributes schema/version must be "
-                              f"{SCHEMA!r}/{VERSION}")
+                              f"{SCHEMA!r}/{' or '.join(map(str, VERSIONS))}")
+    stored["version"] = _version(phi)
+    if phi.ndim == 2:
+        harmonic_set(stored, phi.shape[1])
+        stored["harmonics"] = np.asarray(stored["harmonics"], dtype=np.int64)
+        for key in HARMONIC_ATTRS[1:]:
+            stored[key] = int(stored[key])
     for keys, kind in ((FLOAT_ATTRS, float), (INT_ATTRS, int)):
         for key in keys:
             try:
@@ -292,11 +389,20 @@ def _prepare(nodes, phi, attrs, datasets, n_procs):
     return arrays, stored
 
 
-def _check_arrays(nodes, phi):
+def _version(phi):
+    """The version of a checkpoint of `phi`: 2 with harmonics, else 1."""
+    return 2 if np.ndim(phi) == 2 else 1
+
+
+def _check_arrays(nodes, phi, harmonic=False):
+    """`harmonic`: phi may be (N, nh), as in version 2."""
     if nodes.ndim != 2 or nodes.shape[1] != 2:
         raise CheckpointError(f"'nodes' has shape {nodes.shape}, expected "
                               f"(N, 2)")
-    if phi.shape != (len(nodes),):
+    if phi.ndim not in ((1, 2) if harmonic else (1,)):
+        raise CheckpointError(f"'phi' has shape {phi.shape}, expected "
+                              f"{'(N,) or (N, nh)' if harmonic else '(N,)'}")
+    if len(phi) != len(nodes):
         raise CheckpointError(f"'phi' has shape {phi.shape} but 'nodes' has "
                               f"{len(nodes)} rows")
     for name, data in (("nodes", nodes), ("phi", phi)):
@@ -322,10 +428,16 @@ def _set_attrs(target, attrs, where=''):
                                   "cannot be stored in HDF5") from exc
 
 
-def _fill(tmp, arrays, attrs):
+def _fill(tmp, arrays, attrs, sampled=None):
+    """The checkpoint file `tmp`; `sampled`: (values, origin, step) of
+    `analysis.field3d.sample`, stored as ``phi3d``."""
     with h5py.File(tmp, "x") as h5:
         for name, data in arrays.items():
             h5.create_dataset(name, data=data)
+        if sampled is not None:
+            values, origin, step = sampled
+            h5.create_dataset(SAMPLED, data=values)
+            _set_attrs(h5[SAMPLED], dict(origin=origin, step=step), f" of {SAMPLED!r}")
         _set_attrs(h5, attrs)
 
 
@@ -343,13 +455,18 @@ def _load(path, expect_box):
             if missing:
                 raise CheckpointError(f"missing dataset {missing[0]!r}")
             arrays = {name: h5[name][()] for name in h5
-                      if isinstance(h5[name], h5py.Dataset)}
+                      if isinstance(h5[name], h5py.Dataset) and name != SAMPLED}
     except OSError as exc:
         raise CheckpointError(f"truncated or corrupt HDF5 file "
                               f"({_one_line(exc)})") from exc
     nodes = np.asarray(arrays.pop("nodes"), dtype=np.float64)
     phi = np.asarray(arrays.pop("phi"), dtype=np.float64)
-    _check_arrays(nodes, phi)
+    if attrs["version"] != _version(phi):
+        raise CheckpointError(f"wrong version {attrs['version']!r}, expected "
+                              f"{_version(phi)!r} for a phi of shape {phi.shape}")
+    _check_arrays(nodes, phi, harmonic=True)
+    if phi.ndim == 2:
+        harmonic_set(attrs, phi.shape[1])
     attrs["box"] = np.asarray(attrs["box"], dtype=np.float64)
     _check_box(attrs["box"])
     if expect_box is not None:
@@ -365,13 +482,13 @@ def _load(path, expect_box):
 def _check_header(attrs):
     """Check the schema first so that a foreign file is reported as such
     rather than as an incomplete checkpoint."""
-    for key, expected in (("schema", SCHEMA), ("version", VERSION)):
+    for key, expected in (("schema", (SCHEMA,)), ("version", VERSIONS)):
         if key not in attrs:
             raise CheckpointError(f"missing attribute {key!r} (not a "
                                   f"{SCHEMA} file)")
-        if attrs[key] != expected:
+        if attrs[key] not in expected:
             raise CheckpointError(f"wrong {key} {attrs[key]!r}, expected "
-                                  f"{expected!r}")
+                                  f"{' or '.join(map(repr, expected))}")
     missing = [key for key in REQUIRED_ATTRS if key not in attrs]
     if missing:
         raise CheckpointError(f"missing attribute {missing[0]!r}")
@@ -433,10 +550,8 @@ def _write_text(tmp, text):
 
 
 def _xdmf_text(h5name, n_nodes, n_triangles):
-    root = ET.Element("Xdmf", Version="3.0")
-    domain = ET.SubElement(root, "Domain")
-    grid = ET.SubElement(domain, "Grid", Name="pfmembrane",
-                         GridType="Uniform")
+    """The (r, z) nodes with their triangles and phi."""
+    root, grid = _xdmf_grid()
     topology = ET.SubElement(grid, "Topology", TopologyType="Triangle",
                              NumberOfElements=str(n_triangles))
     _data_item(topology, f"{h5name}:/triangles", f"{n_triangles} 3", "Int")
@@ -445,17 +560,47 @@ def _xdmf_text(h5name, n_nodes, n_triangles):
     attribute = ET.SubElement(grid, "Attribute", Name="phi",
                               AttributeType="Scalar", Center="Node")
     _data_item(attribute, f"{h5name}:/phi", str(n_nodes), "Float")
+    return _xdmf_document(root)
+
+
+def _xdmf_3d_text(h5name, nz, ny, nx, origin, step):
+    """``phi3d`` (nz x ny x nx, x fastest) on its 3DCoRectMesh.
+
+    XDMF lists a CoRectMesh's dimensions slowest axis first, and VTK's
+    readers (ParaView's) take its origin and spacing in that order too
+    (vtkXdmf3DataSet::CopyShape reverses all three): z, y, x throughout.
+    """
+    root, grid = _xdmf_grid()
+    dimensions = f"{nz} {ny} {nx}"
+    ET.SubElement(grid, "Topology", TopologyType="3DCoRectMesh", Dimensions=dimensions)
+    geometry = ET.SubElement(grid, "Geometry", GeometryType="ORIGIN_DXDYDZ")
+    for name, xyz in (("Origin", origin), ("Spacing", step)):
+        _data_item(geometry, " ".join(repr(float(v)) for v in xyz[::-1]), "3", "Float",
+                   fmt="XML", Name=name)
+    attribute = ET.SubElement(grid, "Attribute", Name="phi",
+                              AttributeType="Scalar", Center="Node")
+    _data_item(attribute, f"{h5name}:/{SAMPLED}", dimensions, "Float")
+    return _xdmf_document(root)
+
+
+def _xdmf_grid():
+    root = ET.Element("Xdmf", Version="3.0")
+    domain = ET.SubElement(root, "Domain")
+    return root, ET.SubElement(domain, "Grid", Name="pfmembrane", GridType="Uniform")
+
+
+def _xdmf_document(root):
     ET.indent(root)
     return ('<?xml version="1.0" encoding="utf-8"?>\n'
             '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
             + ET.tostring(root, encoding="unicode") + "\n")
 
 
-def _data_item(parent, reference, dimensions, number_type):
-    # Both the triangles and the arrays are stored as 8-byte numbers.
-    item = ET.SubElement(parent, "DataItem", Dimensions=dimensions,
-                         NumberType=number_type, Precision="8", Format="HDF")
-    item.text = reference
+def _data_item(parent, text, dimensions, number_type, fmt="HDF", **extra):
+    # The triangles, the arrays and the XML numbers are all 8-byte numbers.
+    item = ET.SubElement(parent, "DataItem", **extra, Dimensions=dimensions,
+                         NumberType=number_type, Precision="8", Format=fmt)
+    item.text = text
 
 
 # Branch files: the states of a continuation in one file.

@@ -347,6 +347,8 @@ def validate(p):
     check_scene(p)
     for name in ('eps', 'gamma'):
         _require(getattr(p, name) > 0, name, '> 0', getattr(p, name))
+    if p.tol and p.harmonics:
+        raise UsageError("-pf_tol with -pf_harmonics: accuracy on demand is axisymmetric only")
     validate_settings(p)
     _require(p.quad_degree in QUADRATURE, 'quad_degree', f"one of {QUADRATURE}", p.quad_degree)
     _require(0.0 < p.cutoff < 1.0, 'cutoff', 'in (0, 1)', p.cutoff)

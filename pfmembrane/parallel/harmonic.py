@@ -75,6 +75,7 @@ class HarmonicAssembly(Assembly):
         self.harmonics = harmonics
         super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
         self._state = None
+        self._shift = 0.0
         self._J = None
 
     def local_pattern(self):
@@ -87,7 +88,13 @@ class HarmonicAssembly(Assembly):
         """The bordered block-diagonal matrix, and the state of the exact
         operator (`jacobian_operator`)."""
         self._state = (self.local(x), sigma, C, diag)
+        self._shift = 0.0
         return super().assemble_bordered(x, sigma, C, diag)
+
+    def shift_hessian(self, delta):
+        """Shift the model's diagonal and the exact action alike."""
+        self._shift += delta
+        super().shift_hessian(delta)
 
     def jacobian_operator(self):
         """A shell matrix: [[H, -C^T], [-C, diag]] applied, H the exact Hessian
@@ -104,7 +111,10 @@ class HarmonicAssembly(Assembly):
         chi, sigma = self._state[:2]
         with self.log['Hessian']:
             local = self.forms.hessian_action(chi, sigma, self.local(v))
-        return self._to_global(local, out)
+        self._to_global(local, out)
+        if self._shift:
+            out.axpy(self._shift, v)
+        return out
 
 
 class _BorderedAction:

@@ -170,7 +170,7 @@ class Solver:
             if applied:
                 P.shift_hessian(applied)
             while True:
-                ksp.setOperators(K)
+                ksp.setOperators(P.jacobian_operator(), K)
                 rhs.zeroEntries()
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
                 ksp.solve(rhs, sol)
@@ -333,7 +333,7 @@ class Solver:
         symmetric indefinite, and LDL^T takes about half the work of LU)
         with AMD-type ordering; options override."""
         ksp.setOptionsPrefix(self.prefix + stage)
-        if self.P.krylov and stage == 'stage2_':
+        if self.P.krylov:
             # the operator is the exact Hessian's action, the factored matrix its
             # block-diagonal model: GMRES to a tight tolerance keeps Newton quadratic
             ksp.setType(PETSc.KSP.Type.GMRES)
