@@ -68,6 +68,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
         phi = problem.nodal(x, -1.0)
         max_phi = problem.assembly.max_abs_phi(x)
         nu, stats = problem.nu, problem.solver.stats
+        history = np.array(problem.solver.history)
         factorizations = problem.solver.factorizations
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
     if unused:
@@ -101,7 +102,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                  time_linear=_event_seconds(mpi, LINEAR_EVENTS, stages),
                  peak_rss_mb=mpi.allreduce(
                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX),
-                 box=np.asarray(scene.box))
+                 box=np.asarray(scene.box), energy_history=history)
     if scene.harmonics:
         attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
                      dihedral=scene.dihedral)

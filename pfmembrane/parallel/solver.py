@@ -64,6 +64,7 @@ class Solver:
         self._ksps = {}  # direct solvers by options prefix (`direct_ksp`)
         self.mpi = problem.mpi
         self.stats = {}
+        self.history = []  # E at every iteration of both stages: the energy path
 
     # -- helpers ---------------------------------------------------------------
     def evaluate(self, x):
@@ -86,6 +87,7 @@ class Solver:
         return np.linalg.solve(G, rhs)
 
     def row(self, stage, it, vals, res, gnorm):
+        self.history.append(vals[0])
         if self.p.monitor:
             rel = np.abs(res) / self.scale
             moment = f"rM {rel[2]:.2e} " if self.ncon == 3 else ''
@@ -175,7 +177,9 @@ class Solver:
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
                 ksp.solve(rhs, sol)
                 self.factorizations += 1
-                nneg = self.negative_pivots(ksp)
+                # the factored model's inertia is not the exact Hessian's: with an
+                # action (krylov) only the descent test stands
+                nneg = None if P.krylov else self.negative_pivots(ksp)
                 d.setArray(sol.getArray(readonly=True)[:nl])
                 slope = g.dot(d)
                 if (nneg is None or nneg == self.ncon) and slope < 0:
@@ -271,9 +275,12 @@ class Solver:
             return np.asarray(self.mpi.bcast(None if nu is None else nu.copy(),
                                              root=P.comm.getSize() - 1))
 
+        last_vals = [None]
+
         def residual(snes, XX, FF):
             nu = unpack(XX)
             vals, res = self.evaluate(xx)
+            last_vals[0] = vals
             self.combine(g, nu)
             FF.getArray()[:nl] = g.getArray(readonly=True)
             if last:
@@ -299,6 +306,8 @@ class Solver:
         snes.setFromOptions()
         self._redundant_defaults(snes.getKSP(), 'stage2_')
         snes.setConvergenceHistory()
+        # SNES monitors after the residual at the new iterate
+        snes.setMonitor(lambda snes, it, fnorm: self.history.append(last_vals[0][0]))
         X0 = X.copy()
         snes.solve(None, X)
         reason = snes.getConvergedReason()
