@@ -73,21 +73,28 @@ def surface_checks(mpi, xy, phi, attrs, beta, plane=None):
     (`analysis.field3d`): ``components``, ``genus`` (the sum over the
     components, from their Euler characteristics), ``topology`` ('1 sphere',
     '1 torus', '2 spheres' ... by component and genus) and ``level_set_energy``
-    (its Canham-Helfrich energy, each component with its orientation), with
-    ``level_set_area`` and ``level_set_volume`` and ``level_set_step`` (the
-    marching step). Rank 0 computes."""
+    (its Canham-Helfrich energy, each component with its orientation, put on
+    the scene's area and volume by `field3d.projected`: the level
+    ``level_set_level`` with the scene's reduced volume, scaled;
+    ``level_set_error`` its change with the marching step), with ``level_set_area``, ``level_set_volume`` and
+    ``level_set_step`` (the finer marching step). Rank 0 computes."""
     result = {}
     if mpi.Get_rank() == 0:
         box, eps = tuple(attrs['box']), float(attrs['eps'])
         sine = np.zeros(len(attrs['harmonics']), bool)
         field = field3d.Harmonic3D.of(xy, phi, attrs['harmonics'], sine, box, eps, beta,
                                       float(attrs['cutoff']), plane)
-        m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']))
+        m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']),
+                            field3d.MARCH * eps / 2)
+        _, energy, bar, level = field3d.projected(field, box, eps, float(attrs['k']),
+                                                  float(attrs['c0']), float(attrs['radius']),
+                                                  float(attrs['reduced_volume']))
         kinds = ['torus' if p['genus'] == 1 else 'sphere' if p['genus'] == 0
                  else f"genus-{p['genus']:g} surface" for p in m.per_component]
         label = ', '.join(f"{kinds.count(k)} {k}{'s' if kinds.count(k) > 1 else ''}"
                           for k in dict.fromkeys(kinds)) or 'no surface'
         result.update(components=m.components, genus=m.genus, topology=label,
-                      level_set_energy=m.energy, level_set_area=m.area,
-                      level_set_volume=m.volume, level_set_step=field3d.MARCH * eps)
+                      level_set_energy=energy, level_set_error=bar, level_set_level=level,
+                      level_set_area=m.area, level_set_volume=m.volume,
+                      level_set_step=field3d.MARCH * eps / 2)
     return mpi.bcast(result, root=0)

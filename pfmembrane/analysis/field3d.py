@@ -22,6 +22,7 @@ from pfmembrane.kernels.maxent import interpolate
 RASTER = 1.0 / 6      # raster step, in eps
 MARCH = 0.5           # marching-tetrahedra step, in eps
 R_AXIS = 1e-9         # 1/r terms are taken at r >= R_AXIS (their limits are finite)
+LEVEL_TOL = 1e-6      # reduced volume of the projected level set, off v by at most this
 SAMPLE_STEP = 0.5     # a checkpoint's phi3d: its step, in eps ...
 SAMPLE_POINTS = 2_000_000  # ... coarsened to keep it at most this many points
 
@@ -36,13 +37,14 @@ class Harmonic3D:
     sine: np.ndarray
     zc: float
     plane: float = None
+    extent: tuple = None   # (largest r, lowest z, highest z) where phi_h may reach 0
 
     @classmethod
     def of(cls, nodes, phi, m, sine, box, eps, beta, cutoff, plane=None):
-        step = RASTER * eps
-        r = np.arange(0.0, box[0] + step / 2, step)
         z0 = plane if plane is not None else 0.0
-        z = np.arange(z0, box[1] + step / 2, step)
+        # steps of at most RASTER eps that end on the box's sides
+        r, z = (np.linspace(a, b, int(np.ceil((b - a) / (RASTER * eps))) + 1)
+                for a, b in ((0.0, box[0]), (z0, box[1])))
         R, Z = np.meshgrid(r, z, indexing='ij')
         points = np.column_stack([R.ravel(), Z.ravel()])
         basis = folded_basis(points, nodes, beta, cutoff, derivatives=0, plane=plane)
@@ -53,7 +55,14 @@ class Harmonic3D:
             v = values[:, j].reshape(len(r), len(z))
             splines.append(RectBivariateSpline(full_r, z, np.concatenate([v[:0:-1], v]),
                                                kx=3, ky=3, s=0))
-        return cls(splines, np.asarray(m), np.asarray(sine, bool), 0.5 * box[1], plane)
+        # phi_h <= chi_0 + sum_j>0 r^m |chi_j|: where that bound is below 0 there is no membrane
+        bound = values[:, 0] + (np.abs(values[:, 1:]) * points[:, :1] ** np.asarray(m)[1:]).sum(1)
+        near = points[bound >= -0.5]
+        extent = None
+        if len(near):
+            zlo = near[:, 1].min() if plane is None else 2 * plane - near[:, 1].max()
+            extent = (near[:, 0].max(), zlo, near[:, 1].max())
+        return cls(splines, np.asarray(m), np.asarray(sine, bool), 0.5 * box[1], plane, extent)
 
     def __call__(self, points):
         return _Evaluation(self, np.asarray(points, dtype=float))
@@ -137,14 +146,82 @@ class _Evaluation:
 def measure(field, box, eps, k, c0, step=None):
     """The zero level set of `field` (a `Harmonic3D`) in the cylinder of the
     box: `analysis.surface.measure` on a Cartesian grid of step `step`
-    (MARCH eps by default), shifted off the axis by an irrational fraction so
-    that no sample lies on it."""
+    (MARCH eps by default, `_bounds`)."""
     step = step or MARCH * eps
-    shift = step * (np.sqrt(2) - 1) / 3
+    return surface.measure(field, *_bounds(field, box, eps, step), step, k=k, c0=c0)
+
+
+def _bounds(field, box, eps, step):
+    """The marching grid's corners: the box's cylinder cut to the field's
+    extent with 2 eps to spare, the lower shifted by an irrational fraction
+    of the step so that no sample lies on the axis."""
+    f = getattr(field, 'field', field)  # a `_Level` of a field
     Rb, Zb = box
-    lower = np.array([-Rb + shift, -Rb + shift, 0.0 + shift])
-    upper = np.array([Rb, Rb, Zb])
-    return surface.measure(field, lower, upper, step, k=k, c0=c0)
+    lower, upper = np.array([-Rb, -Rb, 0.0]), np.array([Rb, Rb, Zb])
+    if f.extent is not None:
+        r, zlo, zhi = f.extent
+        lower = np.maximum(lower, [-r - 2 * eps, -r - 2 * eps, zlo - 2 * eps])
+        upper = np.minimum(upper, [r + 2 * eps, r + 2 * eps, zhi + 2 * eps])
+    return lower + step * (np.sqrt(2) - 1) / 3, upper
+
+
+def projected(field, box, eps, k, c0, radius, v, iterations=8):
+    """The level set's energy put on the scene's constraints, as the
+    axisymmetric one is (`levelset.level_set_energy`): the level phi_h = c
+    whose reduced volume is v (secant steps on the coarse marching step),
+    scaled to the area 4 pi R^2; scaling by s leaves (H - C0)^2 dS as (H -
+    s C0)^2 dS, so its energy is that of the level set with C0 s. The
+    level set lies O(eps) from the sharp shape, which is stationary on the
+    constraints: the error is second order. Measured at steps MARCH eps and
+    half that. Returns the finer measurement, its energy and the change
+    from the coarser step (the bar), and the level; NaN without a level of
+    reduced volume v within LEVEL_TOL (a field too diffuse: the secant
+    leaves phi_h in (-0.9, 0.9))."""
+    def reduced(c, step):
+        m = measure(_Level(field, c), box, eps, k, c0, step)
+        return 6 * np.sqrt(np.pi) * m.volume / m.area ** 1.5 - v
+    coarse_step = MARCH * eps
+    c = [0.0, 0.05]
+    f = [reduced(x, coarse_step) for x in c]
+    for _ in range(iterations):
+        if abs(f[-1]) < 1e-10 or f[-1] == f[-2]:
+            break
+        c.append(float(np.clip(c[-1] - f[-1] * (c[-1] - c[-2]) / (f[-1] - f[-2]), -0.9, 0.9)))
+        f.append(reduced(c[-1], coarse_step))
+    best = int(np.argmin(np.abs(f)))
+    if not abs(f[best]) < LEVEL_TOL:  # a field too diffuse for a level of that volume
+        return None, np.nan, np.nan, np.nan
+    level = c[best]
+    out = []
+    for step in (coarse_step, coarse_step / 2):
+        shifted = _Level(field, level)
+        surf = surface.extract(shifted, *_bounds(field, box, eps, step), step)
+        parts = surface.components(surf)
+        area = sum(p.area for p in parts)
+        scale = np.sqrt(4 * np.pi * radius ** 2 / area)
+        energy = surface.helfrich_energy(surf, shifted, k, c0 * scale, parts).total
+        out.append((parts, energy))
+    (_, coarse), (parts, energy) = out
+    return parts, energy, abs(energy - coarse), level
+
+
+class _Level:
+    """phi_h - c: the level set phi_h = c as a zero level set."""
+
+    def __init__(self, field, c):
+        self.field, self.c = field, c
+
+    def __call__(self, points):
+        value = self.field(points)
+        return _Shifted(value, self.c)
+
+
+class _Shifted:
+    def __init__(self, value, c):
+        self.value, self.c = value, c
+
+    def __getitem__(self, i):
+        return self.value[0] - self.c if i == 0 else self.value[i]
 
 
 def sample(nodes, phi, attrs, beta=None):

@@ -1,0 +1,102 @@
+"""Rotation invariance: a prolate lying across the axis (its long axis along x) at v 0.95 and
+0.9, eps 0.04, with the cosine harmonics m = 0, 2, ..., 2J about z (-pf_dihedral 2, half box
+in z), against the axisymmetric prolate (long axis along z) at the same eps and spacing (the
+paper's: 6,124 nodes on 1.5 x 2), on one box that holds both. Each J starts from the last
+J's equilibrium (the new harmonic zero), the first from the triaxial start (-pf_start
+across). Under mpiexec; the table is rewritten after every solve to runs/harmonics/across.md.
+
+    mpiexec -n 2 python runs/harmonics/across.py [--highest 1,2,3,4,6] [--v 0.95,0.9]
+        [--until HH:MM]
+"""
+import argparse
+import dataclasses
+import datetime
+import os
+import sys
+import time
+
+import numpy as np
+
+import pfmembrane as pf
+from pfmembrane import report
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+BOX = (0.75, 1.5)
+NODES = round(6124 * BOX[0] * BOX[1] / (1.5 * 2.0))  # the paper's spacing
+EPS = 0.04
+
+
+def left(until):
+    """Seconds before `until` (HH:MM UTC), inf without one."""
+    if until is None:
+        return np.inf
+    now = datetime.datetime.now(datetime.timezone.utc)
+    h, m = map(int, until.split(':'))
+    return (now.replace(hour=h, minute=m, second=0) - now).total_seconds()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--highest', default='1,2,3,4,6')
+    ap.add_argument('--v', default='0.95,0.9')
+    ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
+    ap.add_argument('--out', default=os.path.join(HERE, 'across.md'))
+    args = ap.parse_args(argv)
+    PETSc = pf.api.petsc(sys.argv[:1])
+    rank = PETSc.COMM_WORLD.getRank()
+    record = report.provenance()
+    rows, axis = [], {}
+    for v in map(float, args.v.split(',')):
+        scene = pf.Scene(reduced_volume=v, branch='prolate', box=BOX, symmetric=True)
+        grid = pf.Grid.uniform(scene, nodes=NODES)
+        t = time.perf_counter()
+        axi = pf.solve(scene, grid, EPS, checks=True)
+        axis[v] = (axi.energy, axi.attrs.get('level_set_energy', np.nan),
+                   time.perf_counter() - t)
+        last = None
+        for J in map(int, args.highest.split(',')):
+            if PETSc.COMM_WORLD.tompi4py().bcast(left(args.until), root=0) < 60:
+                rows.append([v, J, 'skipped (deadline)', '', '', '', '', ''])
+                continue
+            harmonic = dataclasses.replace(scene, harmonics=J, dihedral=2)
+            options = {'pf_start': 'across'}
+            start = None
+            if last is not None:
+                phi = np.zeros((len(last.phi), J + 1))
+                phi[:, :last.phi.shape[1]] = last.phi
+                start = dataclasses.replace(last, phi=phi)
+            t = time.perf_counter()
+            r = pf.solve(harmonic, grid, EPS, start=start, options=options, checks=True)
+            seconds = time.perf_counter() - t
+            if r.converged:
+                last = r
+            rows.append([v, J, f"{r.energy:.6f}" if r.converged else f"not converged ({r.message})",
+                         f"{(r.energy / axi.energy - 1) * 100:+.3f}%",
+                         f"{r.attrs.get('level_set_energy', np.nan):.5f}",
+                         r.attrs.get('topology', '-'), f"{seconds:.0f}",
+                         f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}"])
+            if rank == 0:
+                write(args, record, rows, axis)
+    if rank == 0:
+        write(args, record, rows, axis)
+
+
+def write(args, record, rows, axis):
+    lines = report.header('A prolate across the axis against the axisymmetric prolate', record)
+    lines += [f"eps {EPS}, box {BOX[0]} x {BOX[1]} (half box z >= {BOX[1] / 2}), {NODES} nodes "
+              "of the full box (the paper's spacing), 2 ranks. Harmonics m = 0, 2, ..., 2J "
+              "(cosines). J = first: from the triaxial start; each next J from the last J's "
+              "equilibrium. Level-set E: the 3D surface at step eps/2 (O(step^2)).", '',
+              'Axisymmetric prolate (long axis along z) on the same grid:', '']
+    lines += report.table(['v', 'E', 'level-set E (curve)', 'wall s'],
+                          [[v, f"{e:.6f}", f"{ls:.5f}", f"{s:.1f}"]
+                           for v, (e, ls, s) in axis.items()])
+    lines += ['', 'Across the axis:', '']
+    lines += report.table(['v', 'J', 'E', 'E / E_axi - 1', 'level-set E (3D)', 'topology',
+                           'wall s', 'Newton its (stage 1/2)'], rows)
+    with open(args.out, 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+
+
+if __name__ == '__main__':
+    main()
