@@ -92,6 +92,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                  max_phi=max_phi,
                  stage1_iterations=stats.get('stage1', {}).get('inner', -1),
                  stage2_iterations=stats.get('stage2', {}).get('iterations', -1),
+                 stage2_linear_iterations=stats.get('stage2', {}).get('linear_iterations', -1),
                  factorizations=factorizations, adapt=adapt_f, adapt_band=adapt_band,
                  parent=start.path if start is not None else '',
                  start_topology=start.attrs.get('topology', '') if start is not None else '',

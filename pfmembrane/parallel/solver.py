@@ -319,6 +319,7 @@ class Solver:
         vals, res = self.evaluate(x)
         rel = np.abs(res) / self.scale
         self.stats['stage2'] = dict(iterations=snes.getIterationNumber(), reason=reason,
+                                    linear_iterations=snes.getLinearSolveIterations(),
                                     time=time.perf_counter() - t0, energy=vals[0],
                                     residual=rel.max())
         snes.destroy()
