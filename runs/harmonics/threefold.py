@@ -1,0 +1,87 @@
+"""The three-fold shapes out of the oblate at c0 2.8 (C0 R = 1.4, SBL's value): at each v of
+a decreasing sequence the axisymmetric oblate (from the last v's), its m = 3 eigenvalue, and
+the solve with the harmonics m = 0, 3, ..., 3J (-pf_dihedral 3) from the oblate perturbed in
+every harmonic (-pf_perturb), then from the last v's three-fold state: natural continuation
+in v, not arclength. eps 0.04 on the paper's grid (6,124 nodes), half box. Under mpiexec;
+the table is rewritten after every v to runs/harmonics/threefold.md.
+
+    mpiexec -n 2 python runs/harmonics/threefold.py [--v 0.96,0.95,0.94,0.92,0.9]
+        [--harmonics 2] [--until HH:MM]
+"""
+import argparse
+import dataclasses
+import datetime
+import os
+import sys
+import time
+
+import numpy as np
+
+import pfmembrane as pf
+from pfmembrane import report
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+C0, EPS = 2.8, 0.04
+
+
+def left(until):
+    if until is None:
+        return np.inf
+    now = datetime.datetime.now(datetime.timezone.utc)
+    h, m = map(int, until.split(':'))
+    return (now.replace(hour=h, minute=m, second=0) - now).total_seconds()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--v', default='0.96,0.95,0.94,0.92,0.9')
+    ap.add_argument('--harmonics', type=int, default=2)
+    ap.add_argument('--until', default=None)
+    ap.add_argument('--out', default=os.path.join(HERE, 'threefold.md'))
+    args = ap.parse_args(argv)
+    PETSc = pf.api.petsc(sys.argv[:1])
+    mpi = PETSc.COMM_WORLD.tompi4py()
+    record = report.provenance()
+    rows = []
+    oblate = threefold = None
+    grid = None
+    for v in map(float, args.v.split(',')):
+        if mpi.bcast(left(args.until), root=0) < 120:
+            rows.append([v] + ['skipped (deadline)'] + [''] * 6)
+            continue
+        scene = pf.Scene(reduced_volume=v, c0=C0, branch='oblate', symmetric=True)
+        grid = grid or pf.Grid.uniform(scene, nodes=6124)
+        t = time.perf_counter()
+        oblate = pf.solve(scene, grid, EPS, start=oblate)
+        lowest = pf.stability(oblate, modes=3, nev=2)[3].eigenvalues[0]
+        harmonic = dataclasses.replace(scene, harmonics=args.harmonics, dihedral=3)
+        start = threefold if threefold is not None and threefold.converged else oblate
+        r = pf.solve(harmonic, grid, EPS, start=start, checks=True)
+        seconds = time.perf_counter() - t
+        if r.converged and np.abs(r.phi[:, 1]).max() > 1e-6:
+            threefold = r
+        rows.append([v, f"{oblate.energy:.6f}", f"{lowest:.4g}",
+                     f"{r.energy:.6f}" if r.converged else f"not converged ({r.message})",
+                     f"{r.energy - oblate.energy:.3e}", f"{np.abs(r.phi[:, 1]).max():.4f}",
+                     f"{r.attrs.get('level_set_energy', np.nan):.5f}", f"{seconds:.0f}"])
+        if mpi.Get_rank() == 0:
+            write(args, record, rows)
+    if mpi.Get_rank() == 0:
+        write(args, record, rows)
+
+
+def write(args, record, rows):
+    lines = report.header('Three-fold shapes out of the oblate at c0 2.8', record)
+    lines += [f"c0 {C0} (C0 R 1.4), eps {EPS}, 6,124 nodes of the full box (half box z >= Zb/2), "
+              f"2 ranks; harmonics m = 0, 3, ..., {3 * args.harmonics} (cosines). The oblate at "
+              "each v from the last v's; the three-fold solve from the last three-fold state, "
+              "else from the oblate perturbed in every harmonic. lambda_3: the oblate's lowest "
+              "m = 3 eigenvalue (negative: unstable).", '']
+    lines += report.table(['v', 'E oblate', 'lambda_3', 'E three-fold', 'E3 - E oblate',
+                           'max |chi_3|', 'level-set E (3D)', 'wall s'], rows)
+    with open(args.out, 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+
+
+if __name__ == '__main__':
+    main()
