@@ -72,6 +72,7 @@ class HarmonicForms:
     def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None):
         self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
         self._gram = gram
+        self._BT = None
         self.h = harmonics
         r, m = ops.r[:, None], harmonics.m[None, :]
         self.R = r ** m                                    # r^m
@@ -122,21 +123,22 @@ class HarmonicForms:
         """mean over theta of X T_j (or X T_j'): (nq, nh)."""
         return X @ (self.h.dT if derivative else self.h.T) / self.h.n_theta
 
-    def _value_rows(self, P):
-        """B0^T w r^m P: P the projection of a factor of psi."""
-        return self.ops.B0.T @ (self.w * self.R * P)
-
-    def _laplacian_rows(self, P):
-        """The transpose of chi -> Lap psi against P."""
-        o = self.ops
-        return o.BL.T @ (self.w * self.R * P) + o.Br.T @ (self.w * 2 * self.dR * P)
-
-    def _gradient_rows(self, Pr, Pz, Pt):
-        """The transpose of chi -> (psi_r, psi_z, psi_theta / r) against
-        (Pr, Pz, Pt)."""
-        o, w = self.ops, self.w
-        return (o.Br.T @ (w * self.R * Pr) + o.B0.T @ (w * (self.dR * Pr + self.R1 * Pt))
-                + o.Bz.T @ (w * self.R * Pz))
+    def _adjoint(self, u=None, r=None, z=None, t=None, lap=None):
+        """The transpose of chi -> (psi, psi_r, psi_z, psi_theta / r, Lap psi)
+        at the quadrature points against the projections (u, r, z, t, lap)
+        (t against T_j'): one product per operator, by the operators'
+        transposes as CSR (built once: scipy's CSC products are slower)."""
+        w, R, dR = self.w, self.R, self.dR
+        if self._BT is None:
+            o = self.ops
+            self._BT = {name: getattr(o, name).T.tocsr() for name in ('B0', 'Br', 'Bz', 'BL')}
+        out = 0.0
+        for name, pairs in (('B0', ((R, u), (dR, r), (self.R1, t))), ('Br', ((R, r), (2 * dR, lap))),
+                            ('Bz', ((R, z),)), ('BL', ((R, lap),))):
+            given = [c * P for c, P in pairs if P is not None]
+            if given:
+                out = out + self._BT[name] @ (w * sum(given))
+        return out
 
     # -- functionals ---------------------------------------------------------------
     def _integrals(self, u, ur, uz, ut, W):
@@ -159,25 +161,35 @@ class HarmonicForms:
         W, dW, _ = self._W(u, lap)
         eps, cE = self.eps, F_E * self.k / (2 * self.eps)
         p = self._project
-        gE = 2 * cE * (eps * self._laplacian_rows(p(W)) + self._value_rows(p(W * dW)))
-        gA = F_A * (eps * self._gradient_rows(p(ur), p(uz), p(ut, True))
-                    + self._value_rows(p((u ** 3 - u) / eps)))
+        gE = self._adjoint(u=2 * cE * p(W * dW), lap=2 * cE * eps * p(W))
+        a = F_A * eps
+        gA = self._adjoint(u=F_A * p((u ** 3 - u) / eps), r=a * p(ur), z=a * p(uz),
+                           t=a * p(ut, True))
         return self._integrals(u, ur, uz, ut, W), gE.ravel(), gA.ravel()
 
     def hessian_action(self, chi, sigma, v):
         """(Hess E - sigma Hess A) v, local contributions (flat); V and M are
         linear. The coupled Hessian is never formed."""
+        return self.linearization(chi, sigma)(v)
+
+    def linearization(self, chi, sigma):
+        """v -> (Hess E - sigma Hess A) v at chi: the state's fields computed
+        once for every product of a Krylov solve."""
         u, _, _, _, lap = self.fields(chi)
         W, dW, d2W = self._W(u, lap)
-        du, dur, duz, dut, dlap = self.fields(v, offsets=False)
         eps, cE = self.eps, F_E * self.k / (2 * self.eps)
+        area = (3 * u * u - 1.0) / eps
+        curvature = W * d2W
         p = self._project
-        dWv = eps * dlap + dW * du   # the directional derivative of W
-        hE = 2 * cE * (eps * self._laplacian_rows(p(dWv))
-                       + self._value_rows(p(dWv * dW + W * d2W * du)))
-        hA = F_A * (eps * self._gradient_rows(p(dur), p(duz), p(dut, True))
-                    + self._value_rows(p((3 * u * u - 1.0) / eps * du)))
-        return (hE - sigma * hA).ravel()
+
+        def action(v):
+            du, dur, duz, dut, dlap = self.fields(v, offsets=False)
+            dWv = eps * dlap + dW * du   # the directional derivative of W
+            b = -sigma * F_A * eps
+            value = 2 * cE * (dWv * dW + curvature * du) - sigma * F_A * area * du
+            return self._adjoint(u=p(value), r=b * p(dur), z=b * p(duz), t=b * p(dut, True),
+                                 lap=2 * cE * eps * p(dWv)).ravel()
+        return action
 
     def max_abs(self, chi):
         """max |phi_h| over the local quadrature points and theta points."""

@@ -87,7 +87,7 @@ class HarmonicAssembly(Assembly):
     def assemble_bordered(self, x, sigma, C, diag):
         """The bordered block-diagonal matrix, and the state of the exact
         operator (`jacobian_operator`)."""
-        self._state = (self.local(x), sigma, C, diag)
+        self._state = (self.forms.linearization(self.local(x), sigma), C, diag)
         self._shift = 0.0
         return super().assemble_bordered(x, sigma, C, diag)
 
@@ -108,9 +108,8 @@ class HarmonicAssembly(Assembly):
 
     def hessian_action(self, v, out):
         """out = H v at the last state (v, out distributed Vecs)."""
-        chi, sigma = self._state[:2]
         with self.log['Hessian']:
-            local = self.forms.hessian_action(chi, sigma, self.local(v))
+            local = self._state[0](self.local(v))
         self._to_global(local, out)
         if self._shift:
             out.axpy(self._shift, v)
@@ -132,7 +131,7 @@ class _BorderedAction:
         self.v.setArray(X.getArray(readonly=True)[:nl])
         dnu = a.mpi.bcast(X.getArray(readonly=True)[nl:].copy() if last else None,
                           root=size - 1)
-        _, _, C, diag = a._state
+        _, C, diag = a._state
         a.hessian_action(self.v, self.hv)
         for j in range(ncon):
             self.hv.axpy(-dnu[j], C[j])
