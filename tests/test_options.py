@@ -188,3 +188,14 @@ def test_an_auto_box_holds_the_shapes_with_seven_eps_to_spare(branch, box):
     # Both shapes fit with the margin; the box is rounded up by less than 0.01.
     assert 0 <= p.box[0] - r < 0.01 and 0 <= p.box[1] - 2 * z < 0.01
     assert read({'box': 'auto', 'restart': 'any.h5'}).box == 'auto'  # the checkpoint's box
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'harmonics': '2', 'dihedral': '1'}, r'-pf_harmonics with -pf_dihedral 1: m = 1 holds'),
+    ({'harmonics': '2', 'dihedral': '2', 'mirror': '0'}, r'-pf_mirror 0: sines'),
+    ({'harmonics': '1', 'dihedral': '2', 'tol': '1e-3'}, r'-pf_tol with -pf_harmonics'),
+    ({'harmonics': '-1'}, r'-pf_harmonics must be >= 0'),
+], ids=['dihedral 1', 'sines', 'tol', 'negative'])
+def test_what_harmonics_cannot_yet_do_is_refused(values, message):
+    with pytest.raises(UsageError, match=message):
+        read(values)

@@ -328,6 +328,10 @@ def check_scene(s):
     harmonics, dihedral = getattr(s, 'harmonics', 0), getattr(s, 'dihedral', 1)
     _require(harmonics >= 0, 'harmonics', '>= 0', harmonics)
     _require(dihedral >= 1, 'dihedral', '>= 1', dihedral)
+    if harmonics and dihedral == 1:
+        raise UsageError("-pf_harmonics with -pf_dihedral 1: m = 1 holds the translations across "
+                         "the axis and the rotations about axes across it, which are not pinned "
+                         "(not implemented); give the scene's dihedral order n >= 2")
     if not getattr(s, 'mirror', True):
         raise UsageError("-pf_mirror 0: sines (no mirror plane through the axis) need the "
                          "rotation about the axis pinned, which is not implemented")
