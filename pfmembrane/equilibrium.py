@@ -1,6 +1,7 @@
 """Equilibria and their stability: a solve of a scene on a grid, the
 azimuthal spectra of a solved state. Each runs one `parallel.problem.Problem`,
 which owns its options and PETSc objects and closes with the call."""
+import dataclasses
 import math
 import resource
 import time
@@ -41,9 +42,35 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     a converged field (`analysis.checks`: the level set's topology and own
     energy, the sharp-interface shape's).
 
+    A scene with harmonics from a fresh axisymmetric start first solves its
+    axisymmetric part (the direct solver's few steps take it most of the way),
+    then lifts it with the perturbation `pf_perturb` in every harmonic; the
+    result's times are the sum, its `energy_history` the harmonic solve's.
+
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
     """
+    if scene.harmonics and start is None and (options or {}).get('pf_start') != 'across':
+        axisymmetric, unused_first = _solve(dataclasses.replace(scene, harmonics=0), grid, eps,
+                                            None, options, None, False)
+        if not axisymmetric.converged:
+            return axisymmetric
+        result, unused = _solve(scene, grid, eps, axisymmetric, options, prefix, checks)
+        result.unused_options = [k for k in unused if k in unused_first]
+        for name in ('wall_time', 'time_stage1', 'time_stage2', 'time_assembly', 'time_linear',
+                     'time_setup'):
+            result.attrs[name] += axisymmetric.attrs[name]
+        result.attrs['parent'] = ''
+    else:
+        result, _ = _solve(scene, grid, eps, start, options, prefix, checks)
+    if result.unused_options:
+        warnings.warn("solve options never used: "
+                      f"{', '.join('-' + k for k in result.unused_options)}", stacklevel=2)
+    return result
+
+
+def _solve(scene, grid, eps, start, options, prefix, checks):
+    """`solve` from `start`; the result and the options nothing used."""
     if not grid.fits(scene):
         raise UsageError(
             f"the scene (box {scene.box}, {'half' if scene.symmetric else 'full'} box) "
@@ -71,9 +98,6 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
         history = np.array(problem.solver.history)
         factorizations = problem.solver.factorizations
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
-    if unused:
-        warnings.warn(f"solve options never used: {', '.join('-' + k for k in unused)}",
-                      stacklevel=2)
     setup = grid.setup_time if grid.setup_pending else 0.0
     adapt_f, adapt_band, adapt_time = (
         (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
@@ -113,7 +137,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     elif converged and checks:  # an interrupted run checkpoints at once
         attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,
-                  unused_options=unused)
+                  unused_options=unused), unused
 
 
 def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
