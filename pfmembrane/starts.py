@@ -111,16 +111,19 @@ def start_phi(scene, grid, eps, start, shape='auto', perturb=0.0):
 
 def lifted(phi, nodes, scene, perturb):
     """An axisymmetric nodal phi as the harmonics of `scene` (phi itself
-    without): the harmonics m > 0 of a fresh start carry perturb (1 - phi^2)
-    (r / R)^-m, deterministic, on the membrane, so that psi_m = perturb
-    (1 - phi^2) (r / R)^m, and a solve does not rest on the axisymmetric
+    without): a fresh start's harmonics m > 0 carry psi_m = r^m chi_m with
+    chi_m proportional to 1 - phi^2 (on the membrane), scaled so that the
+    largest psi_m at a node is `perturb` (r^m grows fast past the vesicle):
+    deterministic, so that a solve does not rest on the axisymmetric
     family's saddle."""
     if not scene.harmonics:
         return phi
     h = scene.harmonic_set
     out = np.zeros((len(phi), len(h)))
     out[:, 0] = phi
-    out[:, 1:] = perturb * (1.0 - phi * phi)[:, None] / scene.radius ** h.m[1:]
+    bump = np.clip(1.0 - phi * phi, 0.0, None)
+    psi = nodes[:, :1] ** h.m[1:] * bump[:, None]
+    out[:, 1:] = perturb * bump[:, None] / np.maximum(psi.max(axis=0), 1e-300)
     return out
 
 
