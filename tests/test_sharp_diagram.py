@@ -35,6 +35,7 @@ def test_the_row_energies_are_the_solvers(c0_zero):
         assert energy(c0_zero, branch, 0.6) == pytest.approx(direct(0.6, branch), rel=1e-8)
 
 
+@pytest.mark.slow  # a row of the sharp solver: 6 s
 def test_the_curvature_is_the_scenes():
     """c0 is the scene's 2 C0 R: the row at c0 = -0.5 is sharp.solve at C0 = -0.5 / (2 R)."""
     result = diagram.row(-0.5, radius=R, kinds=['prolate'], v_min=0.8)
