@@ -51,18 +51,19 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     the reason in `message`. Raises `io.options.UsageError` for bad input.
     """
     if scene.harmonics and start is None and (options or {}).get('pf_start') != 'across':
-        axisymmetric, unused_first = _solve(dataclasses.replace(scene, harmonics=0), grid, eps,
-                                            None, options, None, False)
+        axisymmetric = _solve(dataclasses.replace(scene, harmonics=0), grid, eps, None, options,
+                              None, False)
         if not axisymmetric.converged:
             return axisymmetric
-        result, unused = _solve(scene, grid, eps, axisymmetric, options, prefix, checks)
-        result.unused_options = [k for k in unused if k in unused_first]
+        result = _solve(scene, grid, eps, axisymmetric, options, prefix, checks)
+        result.unused_options = [k for k in result.unused_options
+                                 if k in axisymmetric.unused_options]
         for name in ('wall_time', 'time_stage1', 'time_stage2', 'time_assembly', 'time_linear',
                      'time_setup'):
             result.attrs[name] += axisymmetric.attrs[name]
         result.attrs['parent'] = ''
     else:
-        result, _ = _solve(scene, grid, eps, start, options, prefix, checks)
+        result = _solve(scene, grid, eps, start, options, prefix, checks)
     if result.unused_options:
         warnings.warn("solve options never used: "
                       f"{', '.join('-' + k for k in result.unused_options)}", stacklevel=2)
@@ -70,7 +71,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
 
 
 def _solve(scene, grid, eps, start, options, prefix, checks):
-    """`solve` from `start`; the result and the options nothing used."""
+    """`solve` from `start`, its unused options not yet warned of."""
     if not grid.fits(scene):
         raise UsageError(
             f"the scene (box {scene.box}, {'half' if scene.symmetric else 'full'} box) "
@@ -137,7 +138,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
     elif converged and checks:  # an interrupted run checkpoints at once
         attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,
-                  unused_options=unused), unused
+                  unused_options=unused)
 
 
 def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):

@@ -8,6 +8,7 @@ A script `runs/<study>/<study>.py` calls `ensure_ranks(np, __file__, argv)`
 (or `on_groups`) and is restarted under `mpiexec -n NP` when it was started
 without it; `module` may be a module name (`python -m MODULE`) or a script
 path."""
+import datetime
 import os
 import subprocess
 import sys
@@ -112,3 +113,12 @@ def all_or_none(world):
         traceback.print_exc()
         sys.stderr.flush()
         world.Abort(1)
+
+
+def seconds_left(until):
+    """Seconds to `until` (HH:MM UTC today), inf without it: a study's deadline."""
+    if not until:
+        return float('inf')
+    now = datetime.datetime.now(datetime.timezone.utc)
+    h, m = map(int, until.split(':'))
+    return (now.replace(hour=h, minute=m, second=0, microsecond=0) - now).total_seconds()

@@ -81,8 +81,8 @@ def surface_checks(mpi, xy, phi, attrs, beta, plane=None):
     result = {}
     if mpi.Get_rank() == 0:
         box, eps = tuple(attrs['box']), float(attrs['eps'])
-        sine = np.zeros(len(attrs['harmonics']), bool)
-        field = field3d.Harmonic3D.of(xy, phi, attrs['harmonics'], sine, box, eps, beta,
+        layout = checkpoint.harmonic_set(attrs, phi.shape[1])
+        field = field3d.Harmonic3D.of(xy, phi, layout.m, layout.sine, box, eps, beta,
                                       float(attrs['cutoff']), plane)
         m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']),
                             field3d.MARCH * eps / 2)

@@ -167,14 +167,10 @@ class HarmonicForms:
                            t=a * p(ut, True))
         return self._integrals(u, ur, uz, ut, W), gE.ravel(), gA.ravel()
 
-    def hessian_action(self, chi, sigma, v):
-        """(Hess E - sigma Hess A) v, local contributions (flat); V and M are
-        linear. The coupled Hessian is never formed."""
-        return self.linearization(chi, sigma)(v)
-
     def linearization(self, chi, sigma):
-        """v -> (Hess E - sigma Hess A) v at chi: the state's fields computed
-        once for every product of a Krylov solve."""
+        """v -> (Hess E - sigma Hess A) v at chi (local contributions, flat; V
+        and M are linear): the state's fields computed once for every product
+        of a Krylov solve, the coupled Hessian never formed."""
         u, _, _, _, lap = self.fields(chi)
         W, dW, d2W = self._W(u, lap)
         eps, cE = self.eps, F_E * self.k / (2 * self.eps)

@@ -30,7 +30,6 @@ class Interleaved:
         self.ghosts = self._expand(layout.ghosts)
         self.local_numbers = self._expand(layout.local_numbers)
         self.nlocal = len(self.local_numbers)
-        self.order = layout.order
 
     def _expand(self, numbers):
         return (self.nh * np.asarray(numbers)[:, None] + np.arange(self.nh)).ravel()

@@ -37,12 +37,12 @@ class Problem:
             PETSc = start()
             self.settings = read_settings(PETSc.Options(), prefix)
             self.grid, self.scene, self.eps = grid, scene, eps
-            self.layout = grid.discrete.layout
             self.assembly = assembly(grid.discrete, eps, scene)
             self.solver = Solver(self.assembly, self.settings, self.options)
         except BaseException:
             self.options.close()
             raise
+        self.layout = self.assembly.layout  # the unknowns' numbering (with harmonics, interleaved)
         self.comm, self.mpi = grid.comm, grid.comm.tompi4py()
         self.ncon = self.assembly.ncon
         self._analyses = []

@@ -1,7 +1,6 @@
 """What the accuracy studies share: the command line run as a child process from the
 repository root (its earlier step checkpoints removed first, so -pf_tol does not resume),
 a deadline, and the text of its outcome for a table."""
-import datetime
 import os
 import shutil
 import signal
@@ -11,15 +10,6 @@ import time
 from pfmembrane import series
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
-
-def seconds_left(until):
-    """Seconds to `until` (HH:MM UTC today), inf without it."""
-    if not until:
-        return float('inf')
-    now = datetime.datetime.now(datetime.timezone.utc)
-    h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0, microsecond=0) - now).total_seconds()
 
 
 def run(np_, args, output, limit=None):

@@ -19,11 +19,12 @@ import sys
 
 import pfmembrane as pf
 from pfmembrane import report, sharp
+from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 if HERE not in sys.path:
     sys.path.insert(0, HERE)
-from children import ROOT, last_line, run, seconds_left, steps  # noqa: E402  (runs/accuracy/children.py)
+from children import ROOT, last_line, run, steps  # noqa: E402  (runs/accuracy/children.py)
 # (name, options of the scene, family, v)
 CASES = [
     ('discocyte', ['-options_file', 'options/discocyte.opts'], 'oblate', 0.8),

@@ -24,11 +24,12 @@ import warnings
 
 import pfmembrane as pf
 from pfmembrane import report, sharp
+from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 if HERE not in sys.path:
     sys.path.insert(0, HERE)
-from children import ROOT, clean, last_line, run, seconds_left, steps  # noqa: E402  (runs/accuracy/children.py)
+from children import ROOT, clean, last_line, run, steps  # noqa: E402  (runs/accuracy/children.py)
 R = 0.4
 DISCOCYTE = ['-options_file', 'options/discocyte.opts']
 DUMBBELL = ['-options_file', 'options/dumbbell.opts']

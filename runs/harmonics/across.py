@@ -11,7 +11,6 @@ start from there would stay. Under mpiexec; the table is rewritten after every s
 """
 import argparse
 import dataclasses
-import datetime
 import os
 import sys
 import time
@@ -20,20 +19,12 @@ import numpy as np
 
 import pfmembrane as pf
 from pfmembrane import report
+from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BOX = (0.75, 1.5)
 NODES = round(6124 * BOX[0] * BOX[1] / (1.5 * 2.0))  # the paper's spacing
 EPS = 0.04
-
-
-def left(until):
-    """Seconds before `until` (HH:MM UTC), inf without one."""
-    if until is None:
-        return np.inf
-    now = datetime.datetime.now(datetime.timezone.utc)
-    h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0) - now).total_seconds()
 
 
 def main(argv=None):
@@ -55,7 +46,7 @@ def main(argv=None):
         axis[v] = (axi.energy, axi.attrs.get('level_set_energy', np.nan),
                    time.perf_counter() - t)
         for J in map(int, args.highest.split(',')):
-            if PETSc.COMM_WORLD.tompi4py().bcast(left(args.until), root=0) < 60:
+            if PETSc.COMM_WORLD.tompi4py().bcast(seconds_left(args.until), root=0) < 60:
                 rows.append([v, J, 'skipped (deadline)', '', '', '', '', '', ''])
                 continue
             harmonic = dataclasses.replace(scene, harmonics=J, dihedral=2)

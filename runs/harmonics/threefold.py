@@ -10,7 +10,6 @@ the table is rewritten after every v to runs/harmonics/threefold.md.
 """
 import argparse
 import dataclasses
-import datetime
 import os
 import sys
 import time
@@ -19,17 +18,10 @@ import numpy as np
 
 import pfmembrane as pf
 from pfmembrane import report
+from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 C0, EPS = 2.8, 0.04
-
-
-def left(until):
-    if until is None:
-        return np.inf
-    now = datetime.datetime.now(datetime.timezone.utc)
-    h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0) - now).total_seconds()
 
 
 def main(argv=None):
@@ -46,7 +38,7 @@ def main(argv=None):
     oblate = threefold = None
     grid = None
     for v in map(float, args.v.split(',')):
-        if mpi.bcast(left(args.until), root=0) < 120:
+        if mpi.bcast(seconds_left(args.until), root=0) < 120:
             rows.append([v] + ['skipped (deadline)'] + [''] * 6)
             continue
         scene = pf.Scene(reduced_volume=v, c0=C0, branch='oblate', symmetric=True)
