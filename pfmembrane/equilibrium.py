@@ -44,8 +44,12 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
 
     A scene with harmonics from a fresh axisymmetric start first solves its
     axisymmetric part (the direct solver's few steps take it most of the way),
-    then lifts it with the perturbation `pf_perturb` in every harmonic; the
-    result's times are the sum, its `energy_history` the harmonic solve's.
+    then lifts it (`critical_start`): each harmonic m whose mode Hessian has a
+    negative eigenvalue there starts along that critical mode with amplitude
+    `pf_perturb`, the others at 0, so the solve leaves the axisymmetric
+    family's saddle downhill and does not wander where it is stable. The
+    result's times are the sum, its `energy_history` the harmonic solve's,
+    `start_unstable_m` the harmonics pushed.
 
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
@@ -55,12 +59,17 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                               None, False)
         if not axisymmetric.converged:
             return axisymmetric
-        result = _solve(scene, grid, eps, axisymmetric, options, prefix, checks)
+        t = time.perf_counter()
+        lift, unstable = critical_start(axisymmetric, scene, grid, options)
+        t = time.perf_counter() - t
+        result = _solve(scene, grid, eps, lift, options, prefix, checks)
         result.unused_options = [k for k in result.unused_options
                                  if k in axisymmetric.unused_options]
         for name in ('wall_time', 'time_stage1', 'time_stage2', 'time_assembly', 'time_linear',
                      'time_setup'):
             result.attrs[name] += axisymmetric.attrs[name]
+        result.attrs['wall_time'] += t
+        result.attrs.update(start_unstable_m=unstable, time_lift=t)
         result.attrs['parent'] = ''
     else:
         result = _solve(scene, grid, eps, start, options, prefix, checks)
@@ -68,6 +77,45 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
         warnings.warn("solve options never used: "
                       f"{', '.join('-' + k for k in result.unused_options)}", stacklevel=2)
     return result
+
+
+def critical_start(axisymmetric, scene, grid, options=None):
+    """The start of `scene`'s harmonics from its solved axisymmetric part:
+    phi (nodes x harmonics) with psi_m = r^m chi_m cos(m theta) along the
+    lowest eigenvector of mode m's Hessian where that eigenvalue is negative
+    (`parallel.stability`; rigid motions excluded), scaled so that the largest
+    |psi_m| at a node is the scene's `pf_perturb`, and 0 where mode m is
+    stable (the sign of an eigenvector is a rotation by pi / m). Collective.
+
+    Returns the start (a `Result` on `grid`, converged as the axisymmetric
+    one) and the array of the m pushed.
+    """
+    h = scene.harmonic_set
+    phi = np.zeros((len(axisymmetric.phi), len(h)))
+    phi[:, 0] = axisymmetric.phi
+    unstable = []
+    r = grid.nodes[:, 0]
+    with Problem(grid, dataclasses.replace(scene, harmonics=0), axisymmetric.eps,
+                 next_prefix(), options) as problem:
+        perturb = problem.settings.perturb
+        analysis = problem.modes(axisymmetric.phi, axisymmetric.nu[0], 1)
+        for j, m in enumerate(h.m):
+            if m == 0:
+                continue
+            s = analysis.spectrum(m)
+            critical = [v for v, rigid in zip(s.vectors, s.rigid) if not rigid > RIGID]
+            lowest = [e for e, rigid in zip(s.eigenvalues, s.rigid) if not rigid > RIGID]
+            if not lowest or lowest[0] >= 0:
+                continue
+            chi = problem.nodal(critical[0], 0.0)
+            phi[:, j] = perturb * chi / np.abs(r ** m * chi).max()
+            unstable.append(int(m))
+            if problem.settings.summary:
+                PETSc = petsc.start()
+                PETSc.Sys.Print(f"start: the axisymmetric state is unstable to m = {m} "
+                                f"(lowest eigenvalue {lowest[0]:.4g}): pushed along it by "
+                                f"{perturb:g}", comm=grid.comm)
+    return dataclasses.replace(axisymmetric, phi=phi), np.array(unstable, dtype=int)
 
 
 def _solve(scene, grid, eps, start, options, prefix, checks):

@@ -139,8 +139,9 @@ HELP = {
                  'psi_j = r^m chi_j(r,z) cos(m theta); 0: axisymmetric',
     'dihedral': 'dihedral order n of the scene: the harmonics are multiples of n',
     'mirror': 'a mirror plane through the axis: cosines only (0, sines too: not yet supported)',
-    'perturb': 'with harmonics: amplitude of the deterministic perturbation a fresh '
-               'axisymmetric start gets in every harmonic m > 0',
+    'perturb': 'with harmonics: largest |psi_m| of the push a fresh start gets along the '
+               'critical mode of each harmonic m unstable at the solved axisymmetric state '
+               '(an axisymmetric restart: a deterministic bump in every m > 0)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
