@@ -195,6 +195,11 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
     (`parallel.stability`). Collective on the grid's communicator (`grid`, else
     the result's, else one rebuilt from its nodes).
 
+    A result with harmonics gets its index within the scene's harmonics
+    instead (the negative eigenvalues of the exact Hessian on the
+    constraints' tangent space, from one factorization of the coupled
+    bordered Hessian): returned, and recorded as `index_harmonics`.
+
     Returns one `parallel.stability.Spectrum` per m, its `vectors` as nodal chi
     (psi = r^m chi_h) on every rank, and records in `result.attrs` the index
     per m without the rigid motions (`index_m`) and the lowest eigenvalue per
@@ -204,6 +209,8 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
     used are warned of and added to the result's `unused_options`.
     """
     grid = grid or result.grid or Grid.of(result)
+    if result.scene.harmonics:
+        return _harmonic_stability(result, grid, options, prefix)
     PETSc = petsc.start()
     stage = PETSc.Log.Stage('pfModes')
     stage.push()
@@ -230,6 +237,26 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
                                default=np.nan) for s in spectra]),
         time_modes=sum(s.time for s in spectra))
     return spectra
+
+
+def _harmonic_stability(result, grid, options, prefix):
+    """`stability` of a result with harmonics: its index within the scene's
+    harmonics (`Problem.index`, the exact coupled Hessian factored once),
+    recorded as `index_harmonics`. Returns None where the factorization gives
+    no inertia."""
+    PETSc = petsc.start()
+    stage = PETSc.Log.Stage('pfModes')
+    stage.push()
+    t = time.perf_counter()
+    try:
+        with Problem(grid, result.scene, result.eps, prefix or next_prefix(),
+                     {**(options or {}), 'pf_hessian': 'coupled'}) as problem:
+            index = problem.index(result.phi, result.nu[0])
+    finally:
+        stage.pop()
+    result.attrs.update(index_harmonics=-1 if index is None else index,
+                        time_modes=time.perf_counter() - t)
+    return index
 
 
 def _event_seconds(mpi, names, stages):

@@ -28,6 +28,7 @@ UP_DOWN = ('oblate', 'prolate', 'budded', 'torus')
 SHAPE_NAMES = {'spheroid': 'spheroid', 'torus': 'ring torus', 'spheres': 'pair of spheres',
                'sharp': 'sharp-interface shape', 'across': 'spheroid across the axis'}
 STAGE1 = ('newton', 'tao', 'none')
+HESSIANS = ('block', 'coupled')
 QUADRATURE = (1, 2, 4, 5)
 MIN_NODES = 200
 
@@ -50,6 +51,7 @@ class Settings:
     force: bool = False
     start: str = 'auto'
     perturb: float = 0.02
+    hessian: str = 'block'
 
 
 def targets(radius, reduced_volume):
@@ -142,6 +144,10 @@ HELP = {
     'perturb': 'with harmonics: largest |psi_m| of the push a fresh start gets along the '
                'critical mode of each harmonic m unstable at the solved axisymmetric state '
                '(an axisymmetric restart: a deterministic bump in every m > 0)',
+    'hessian': 'with harmonics, the Hessian the solver factors: block (the mode Hessians of the '
+               'theta-averaged state: the preconditioner of GMRES on the exact action) | coupled '
+               '(the exact one, every pair of harmonics: nh^2 times the entries, direct solves '
+               'whose inertia is exact)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
@@ -303,6 +309,9 @@ def validate_settings(s, prefix=''):
                      getattr(s, f.name), prefix)
     if s.start not in START:
         raise UsageError(f"-{prefix}pf_start: unknown start {s.start!r} (choose {', '.join(START)})")
+    if s.hessian not in HESSIANS:
+        raise UsageError(f"-{prefix}pf_hessian: unknown Hessian {s.hessian!r} "
+                         f"(choose {', '.join(HESSIANS)})")
     if s.stage1 not in STAGE1:
         raise UsageError(f"-{prefix}pf_stage1: unknown solver {s.stage1!r} "
                          f"(choose {', '.join(STAGE1)})")

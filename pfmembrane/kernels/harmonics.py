@@ -69,8 +69,9 @@ class HarmonicForms:
     operators' offsets b0 ... enter it alone), the others vanish there.
     """
 
-    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None):
+    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None, coupled=False):
         self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
+        self.coupled = coupled   # `hessian` and `pattern`: the exact coupled Hessian
         self._gram = gram
         self._BT = None
         self.h = harmonics
@@ -84,7 +85,7 @@ class HarmonicForms:
         self.grad_V = 0.5 * (ops.B0.T @ (self.w * self.R * mean_T)).ravel()
         self.grad_M = (ops.B0.T @ (self.w * self.R * mean_T * (ops.z - zc)[:, None])).ravel()
         self.shape = (ops.B0.shape[1], nh)
-        self._interleaved = None
+        self._interleaved = self._coupled = None
 
     # -- fields ------------------------------------------------------------------
     def _coefficients(self, chi):
@@ -187,16 +188,76 @@ class HarmonicForms:
                                  lap=2 * cE * eps * p(dWv)).ravel()
         return action
 
+    def coupled_hessian(self, chi, sigma):
+        """The exact local Hessian of E - sigma A at chi, every pair of
+        harmonics coupled (CSR on `coupled_pattern`): the form of
+        `linearization` assembled, sum over the field pairs (f, g) of
+        E_f^j^T diag(w mean_theta(K_fg tau_f^j tau_g^k)) E_g^k, with E_f^j
+        harmonic j's map chi_j -> field f / T_j (u, u_r, u_z, u_theta / r,
+        Lap u) and tau = T_j (T_j' for u_theta / r). nh^2 times the
+        axisymmetric Hessian's entries: for a factorization that must be
+        exact (an index, `parallel.harmonic`), not for the Krylov solves."""
+        u, _, _, _, lap = self.fields(chi)
+        W, dW, d2W = self._W(u, lap)
+        eps, c = self.eps, F_E * self.k / self.eps       # c = 2 cE
+        stretch = -sigma * F_A * eps
+        pairs = (('u', 'u', c * dW * dW + c * W * d2W - sigma * F_A * (3 * u * u - 1.0) / eps),
+                 ('u', 'l', c * eps * dW), ('l', 'u', c * eps * dW), ('l', 'l', c * eps * eps),
+                 ('r', 'r', stretch), ('z', 'z', stretch), ('t', 't', stretch))
+        o, h, nh = self.ops, self.h, len(self.h)
+        R, dR, R1 = self.R, self.dR, self.R1
+        diag = scipy.sparse.diags
+        E = [dict(u=diag(R[:, j]) @ o.B0, z=diag(R[:, j]) @ o.Bz, t=diag(R1[:, j]) @ o.B0,
+                  r=diag(R[:, j]) @ o.Br + diag(dR[:, j]) @ o.B0,
+                  l=diag(R[:, j]) @ o.BL + diag(2 * dR[:, j]) @ o.Br) for j in range(nh)]
+        tau = {f: (h.dT if f == 't' else h.T) for f in 'uzrlt'}
+        blocks = [[None] * nh for _ in range(nh)]
+        for j in range(nh):
+            for k in range(j, nh):
+                block = 0
+                for f, g, K in pairs:
+                    mean = np.mean(np.asarray(K) * tau[f][:, j] * tau[g][:, k], axis=-1)
+                    if not np.any(mean):
+                        continue
+                    block = block + E[j][f].T @ diag(o.w * mean) @ E[k][g]
+                blocks[j][k] = scipy.sparse.csr_matrix(block) if not np.isscalar(block) else None
+                blocks[k][j] = None if blocks[j][k] is None else blocks[j][k].T
+        n = self.shape[0]
+        H = scipy.sparse.bmat([[b if b is not None else scipy.sparse.csr_matrix((n, n))
+                                for b in row] for row in blocks]).tocsr()
+        # (harmonic j, node a) -> nh a + j, then onto the pattern (structural zeros kept)
+        order = (nh * np.arange(n)[None, :] + np.arange(nh)[:, None]).ravel()
+        H = scipy.sparse.csr_matrix((H.data, order[H.indices], H.indptr), shape=H.shape)
+        H = H[np.argsort(order)]
+        P = self.coupled_pattern()
+        H = (H + scipy.sparse.csr_matrix((np.zeros(P.nnz), P.indices, P.indptr),
+                                         shape=P.shape)).tocsr()
+        H.sort_indices()
+        if H.nnz != P.nnz:
+            raise RuntimeError("the coupled Hessian leaves its pattern")
+        return H
+
+    def coupled_pattern(self):
+        """The sparsity of `coupled_hessian`: the grid's Hessian pattern for
+        every pair of harmonics, interleaved (nh a + j)."""
+        if self._coupled is None:
+            P, nh = self._gram().pattern, len(self.h)
+            K = scipy.sparse.kron(P, np.ones((nh, nh)), format='csr')
+            K.sort_indices()
+            self._coupled = scipy.sparse.csr_matrix(
+                (np.zeros(K.nnz), K.indices, K.indptr), shape=K.shape)
+        return self._coupled
+
     def max_abs(self, chi):
         """max |phi_h| over the local quadrature points and theta points."""
         return float(np.abs(self.fields(chi)[0]).max(initial=0.0))
 
     # -- the block-diagonal Hessian --------------------------------------------------
     def pattern(self):
-        """The sparsity of the block-diagonal Hessian in the interleaved
-        numbering (node a, harmonic j) -> nh a + j: the grid's Hessian pattern
-        once per harmonic."""
-        return self._interleave()[0]
+        """The sparsity of `hessian` in the interleaved numbering (node a,
+        harmonic j) -> nh a + j: the grid's Hessian pattern once per harmonic
+        (block-diagonal), or for every pair (`coupled`)."""
+        return self.coupled_pattern() if self.coupled else self._interleave()[0]
 
     def _interleave(self):
         if self._interleaved is None:
@@ -220,7 +281,10 @@ class HarmonicForms:
         """Local block-diagonal Hessian diag(H_m) of the theta-averaged state
         chi_0 (`azimuthal.ModeForms`, sines and cosines of one m sharing H_m),
         on `pattern`: at an axisymmetric state the exact Hessian of
-        E - sigma A, elsewhere the Krylov solver's preconditioner."""
+        E - sigma A, elsewhere the Krylov solver's preconditioner; with
+        `coupled` the exact one (`coupled_hessian`)."""
+        if self.coupled:
+            return self.coupled_hessian(chi, sigma)
         gram = self._gram()
         chi = np.reshape(chi, self.shape)
         forms = ModeForms(self.ops, gram, gram.blocks(OPERATORS), chi[:, 0], self.eps, self.k,

@@ -62,16 +62,19 @@ class Interleaved:
 
 
 class HarmonicAssembly(Assembly):
-    """`Assembly` of a field with the harmonics `harmonics`. Collective."""
+    """`Assembly` of a field with the harmonics `harmonics`. Collective.
 
-    krylov = True
+    `coupled`: the bordered matrix holds the exact Hessian, every pair of
+    harmonics coupled (nh^2 times the axisymmetric entries), and the solver
+    factors it as it does an axisymmetric one (no Krylov solver, the inertia
+    of every factorization exact: stage 1's shifts and the index)."""
 
-    def __init__(self, grid, eps, k, c0, targets, zc, harmonics):
+    def __init__(self, grid, eps, k, c0, targets, zc, harmonics, coupled=False):
         if grid.plane is not None and np.any(harmonics.sine):
             raise ValueError("sines with a half box: not supported")
         layout = Interleaved(grid.layout, len(harmonics))
-        forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram)
-        self.harmonics = harmonics
+        forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram, coupled)
+        self.harmonics, self.krylov = harmonics, not coupled
         super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
         self._state = None
         self._shift = 0.0
@@ -84,9 +87,10 @@ class HarmonicAssembly(Assembly):
         return self.mpi.allreduce(self.forms.max_abs(self.local(x)), op=MPI.MAX)
 
     def assemble_bordered(self, x, sigma, C, diag):
-        """The bordered block-diagonal matrix, and the state of the exact
-        operator (`jacobian_operator`)."""
-        self._state = (self.forms.linearization(self.local(x), sigma), C, diag)
+        """The bordered matrix (block-diagonal, or `coupled`), and the state
+        of the exact operator (`jacobian_operator`)."""
+        if self.krylov:
+            self._state = (self.forms.linearization(self.local(x), sigma), C, diag)
         self._shift = 0.0
         return super().assemble_bordered(x, sigma, C, diag)
 
@@ -97,7 +101,10 @@ class HarmonicAssembly(Assembly):
 
     def jacobian_operator(self):
         """A shell matrix: [[H, -C^T], [-C, diag]] applied, H the exact Hessian
-        of E - sigma A at the last `assemble_bordered` state."""
+        of E - sigma A at the last `assemble_bordered` state (`coupled`: the
+        bordered matrix itself)."""
+        if not self.krylov:
+            return self.bordered_matrix()
         if self._J is None:
             K = self.bordered_matrix()
             self._J = PETSc.Mat().createPython(K.getSizes(), _BorderedAction(self),

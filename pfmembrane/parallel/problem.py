@@ -37,7 +37,7 @@ class Problem:
             PETSc = start()
             self.settings = read_settings(PETSc.Options(), prefix)
             self.grid, self.scene, self.eps = grid, scene, eps
-            self.assembly = assembly(grid.discrete, eps, scene)
+            self.assembly = assembly(grid.discrete, eps, scene, self.settings.hessian == 'coupled')
             self.solver = Solver(self.assembly, self.settings, self.options)
         except BaseException:
             self.options.close()
@@ -186,6 +186,26 @@ class Problem:
         return self.solver.negative_pivots(ksp)
 
     # -- stability ---------------------------------------------------------------
+    def index(self, phi, nu_area):
+        """The index of the state `phi` (nodal, with harmonics) with tension
+        `nu_area` within the problem's harmonics: the negative eigenvalues of
+        the Hessian of L on the constraints' tangent space, the negative
+        pivots of the exact bordered [[H, -C^T], [-C, 0]] (its `coupled`
+        assembly; -pf_hessian coupled) less the ncon of the constraints.
+        With cosines only and n >= 2 no rigid motion lies in the harmonics.
+        The factorization under the prefix + 'index_'. Collective."""
+        a, solver = self.assembly, self.solver
+        if a.krylov:
+            raise ValueError("an index needs the exact Hessian: -pf_hessian coupled")
+        x = self.vec(phi)
+        solver.evaluate(x)
+        a.assemble_bordered(x, nu_area, solver.C, 0.0)
+        ksp = solver.direct_ksp('index_')
+        ksp.setOperators(a.bordered_matrix())
+        ksp.setUp()
+        nneg = solver.negative_pivots(ksp)
+        return None if nneg is None else nneg - self.ncon
+
     def modes(self, phi, nu_area, nev=3):
         """The mode Hessians of the state `phi` (nodal) with tension `nu_area`
         (`parallel.stability.ModeAnalysis`), its eigensolver under the prefix +
@@ -216,14 +236,15 @@ class Problem:
     def __exit__(self, kind, value, traceback):
         self.close(collective=kind is None or issubclass(kind, (UsageError, GeneratorExit)))
 
-def assembly(discrete, eps, scene):
+def assembly(discrete, eps, scene, coupled=False):
     """The assembly of `scene` on a grid's discretization: axisymmetric, or
-    with the scene's harmonics."""
+    with the scene's harmonics (their exact `coupled` Hessian factored, or
+    its block-diagonal model)."""
     args = (discrete, eps, scene.k, scene.c0, (scene.area, scene.volume), scene.zc)
     if not scene.harmonics:
         return Assembly(*args)
     from pfmembrane.parallel.harmonic import HarmonicAssembly
-    return HarmonicAssembly(*args, scene.harmonic_set)
+    return HarmonicAssembly(*args, scene.harmonic_set, coupled)
 
 
 _count = itertools.count(1)

@@ -1,9 +1,11 @@
-"""The three-fold shapes out of the oblate at c0 2.8 (C0 R = 1.4, SBL's value): at each v of
-a decreasing sequence the axisymmetric oblate (from the last v's), its m = 3 eigenvalue, and
-the solve with the harmonics m = 0, 3, ..., 3J (-pf_dihedral 3) from the oblate perturbed in
-every harmonic (-pf_perturb), then from the last v's three-fold state: natural continuation
-in v, not arclength. eps 0.04 on the paper's grid (6,124 nodes), half box. Under mpiexec;
-the table is rewritten after every v to runs/harmonics/threefold.md.
+"""The three-fold shapes out of the oblate at SBL's reduced spontaneous curvature c0 = 2 C0 R
+= 2.8 (pde2path's vesicle demo: C0 R = 1.4): at each v of a decreasing sequence the
+axisymmetric oblate (from the last v's) and its m = 3 eigenvalue, and the solve with the
+harmonics m = 0, 3, ..., 3J (-pf_dihedral 3): a fresh one (the oblate solved, then pushed
+along its m = 3 critical mode where that is unstable) until a three-fold state exists, then
+from the last v's three-fold state: natural continuation in v, not arclength. eps 0.04 on
+the paper's spacing (6,124 nodes of the full box), half box. Under mpiexec; the table is
+rewritten after every v to runs/harmonics/threefold.md.
 
     mpiexec -n 2 python runs/harmonics/threefold.py [--v 0.96,0.95,0.94,0.92,0.9]
         [--harmonics 2] [--until HH:MM]
@@ -21,7 +23,7 @@ from pfmembrane import report
 from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-C0, EPS = 2.8, 0.04
+C0, EPS, RADIUS = 2.8, 0.04, 0.4   # C0: the reduced 2 C0 R
 
 
 def main(argv=None):
@@ -39,23 +41,30 @@ def main(argv=None):
     grid = None
     for v in map(float, args.v.split(',')):
         if mpi.bcast(seconds_left(args.until), root=0) < 120:
-            rows.append([v] + ['skipped (deadline)'] + [''] * 6)
+            rows.append([v] + ['skipped (deadline)'] + [''] * 9)
             continue
-        scene = pf.Scene(reduced_volume=v, c0=C0, branch='oblate', symmetric=True)
+        scene = pf.Scene(reduced_volume=v, c0=C0 / (2 * RADIUS), radius=RADIUS, branch='oblate',
+                         symmetric=True)
         grid = grid or pf.Grid.uniform(scene, nodes=6124)
-        t = time.perf_counter()
         oblate = pf.solve(scene, grid, EPS, start=oblate)
         lowest = pf.stability(oblate, modes=3, nev=2)[3].eigenvalues[0]
         harmonic = dataclasses.replace(scene, harmonics=args.harmonics, dihedral=3)
-        start = threefold if threefold is not None and threefold.converged else oblate
-        r = pf.solve(harmonic, grid, EPS, start=start, checks=True)
+        t = time.perf_counter()
+        r = pf.solve(harmonic, grid, EPS, start=threefold, checks=True)
         seconds = time.perf_counter() - t
-        if r.converged and np.abs(r.phi[:, 1]).max() > 1e-6:
+        amplitude = np.abs(grid.nodes[:, :1] ** 3 * r.phi[:, 1]).max()
+        pushed = ('m = ' + ', '.join(map(str, r.attrs['start_unstable_m']))
+                  if len(r.attrs.get('start_unstable_m', [])) else
+                  'none' if threefold is None else 'continued')
+        if r.converged and amplitude > 1e-6:
             threefold = r
-        rows.append([v, f"{oblate.energy:.6f}", f"{lowest:.4g}",
+        rows.append([v, f"{oblate.energy:.6f}", f"{lowest:.4g}", pushed,
                      f"{r.energy:.6f}" if r.converged else f"not converged ({r.message})",
-                     f"{r.energy - oblate.energy:.3e}", f"{np.abs(r.phi[:, 1]).max():.4f}",
-                     f"{r.attrs.get('level_set_energy', np.nan):.5f}", f"{seconds:.0f}"])
+                     f"{r.energy - oblate.energy:.3e}", f"{amplitude:.4f}",
+                     f"{r.attrs.get('level_set_energy', np.nan):.5f}",
+                     r.attrs.get('topology', '-'),
+                     f"{r.attrs['stage1_iterations']} / {r.attrs['stage2_iterations']}",
+                     f"{seconds:.0f}"])
         if mpi.Get_rank() == 0:
             write(args, record, rows)
     if mpi.Get_rank() == 0:
@@ -64,13 +73,17 @@ def main(argv=None):
 
 def write(args, record, rows):
     lines = report.header('Three-fold shapes out of the oblate at c0 2.8', record)
-    lines += [f"c0 {C0} (C0 R 1.4), eps {EPS}, 6,124 nodes of the full box (half box z >= Zb/2), "
-              f"2 ranks; harmonics m = 0, 3, ..., {3 * args.harmonics} (cosines). The oblate at "
-              "each v from the last v's; the three-fold solve from the last three-fold state, "
-              "else from the oblate perturbed in every harmonic. lambda_3: the oblate's lowest "
-              "m = 3 eigenvalue (negative: unstable).", '']
-    lines += report.table(['v', 'E oblate', 'lambda_3', 'E three-fold', 'E3 - E oblate',
-                           'max |chi_3|', 'level-set E (3D)', 'wall s'], rows)
+    lines += [f"Reduced c0 = 2 C0 R = {C0} (C0 R 1.4; C0 {C0 / (2 * RADIUS):g} at R {RADIUS}), "
+              f"eps {EPS}, 6,124 nodes of the full box (half box z >= Zb/2), 2 ranks; "
+              f"harmonics m = 0, 3, ..., {3 * args.harmonics} (cosines). The oblate at each v "
+              "from the last v's. The three-fold solve: fresh (the oblate solved, pushed along "
+              "the critical mode of each harmonic unstable there: 'pushed') until a three-fold "
+              "state exists, then from the last v's ('continued'). lambda_3: the oblate's lowest "
+              "m = 3 eigenvalue (negative: unstable). max |psi_3|: the largest r^3 |chi_3| at a "
+              "node. Newton its: stage 1 / stage 2 of the harmonic solve.", '']
+    lines += report.table(['v', 'E oblate', 'lambda_3', 'start', 'E three-fold',
+                           'E3 - E oblate', 'max |psi_3|', 'level-set E (3D)', 'topology',
+                           'Newton its', 'wall s'], rows)
     with open(args.out, 'w') as f:
         f.write('\n'.join(lines) + '\n')
 

@@ -1,7 +1,8 @@
 """Solves with azimuthal harmonics through the public API (one rank under pytest, two under
 `mpiexec -n 2`): an axisymmetric state is an equilibrium of the harmonic solver with the
-axisymmetric energy, a start perturbed along an unstable mode leaves it for a lower
-equilibrium, and the 3D level set is measured."""
+axisymmetric energy, a fresh start leaves it along its unstable mode for a lower
+equilibrium whose index (within the harmonics) is 0 where the axisymmetric state's is 1,
+and the 3D level set is measured."""
 import dataclasses
 
 import numpy as np
@@ -45,6 +46,14 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric):
     assert r.converged
     assert list(r.attrs['start_unstable_m']) == [2]
     assert r.energy < axi.energy
+    # the index within m = 0, 2, 4 (the exact coupled Hessian's inertia): 1 at the
+    # axisymmetric state (its m = 2 mode), 0 at the state it leads to
+    lifted = np.zeros((grid.n_nodes, 3))
+    lifted[:, 0] = axi.phi
+    at_axi = dataclasses.replace(axi, phi=lifted, attrs={**axi.attrs, 'harmonics_highest': 2,
+                                                         'dihedral': 2, 'harmonics': [0, 2, 4]})
+    assert pf.stability(at_axi) == 1 and at_axi.attrs['index_harmonics'] == 1
+    assert pf.stability(r) == 0
     assert np.abs(r.phi[:, 1]).max() > 1e-2
     # the 3D level set: one sphere; its energy put on the constraints (a level of the
     # scene's reduced volume, scaled) against the axisymmetric curve's (the smallest
