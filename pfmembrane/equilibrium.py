@@ -23,6 +23,10 @@ from pfmembrane.starts import start_phi
 # into Vec/Mat, and the linear solves (factorizations included).
 ASSEMBLY_EVENTS = ('pfFunctional', 'pfGradient', 'pfHessian', 'pfMatAssembly')
 LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
+# A harmonic pushed at the start whose largest |psi_m| falls below this has
+# returned to the axisymmetric state (rounding leaves 1e-12 at one that
+# stays there, `tests/parallel/test_harmonic_solve.py`).
+SADDLE_AMPLITUDE = 1e-8
 
 
 def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False):
@@ -70,6 +74,13 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
             result.attrs[name] += axisymmetric.attrs[name]
         result.attrs['wall_time'] += t
         result.attrs.update(start_unstable_m=unstable, time_lift=t)
+        back = returned(result, unstable)
+        if back:
+            result.attrs['saddle'] = 1
+            warnings.warn(f"the solve returned to the axisymmetric state, which is unstable "
+                          f"to m = {', '.join(map(str, back))}: a saddle, not a minimum (a "
+                          "tighter stage 1, -pf_stage1_rtol, or a larger -pf_perturb may leave "
+                          "it)", stacklevel=2)
         result.attrs['parent'] = ''
     else:
         result = _solve(scene, grid, eps, start, options, prefix, checks)
@@ -116,6 +127,17 @@ def critical_start(axisymmetric, scene, grid, options=None):
                                 f"(lowest eigenvalue {lowest[0]:.4g}): pushed along it by "
                                 f"{perturb:g}", comm=grid.comm)
     return dataclasses.replace(axisymmetric, phi=phi), np.array(unstable, dtype=int)
+
+
+def returned(result, unstable):
+    """The harmonics m among `unstable` (pushed at the start) whose largest
+    |psi_m| at a node the converged `result` brought back below
+    SADDLE_AMPLITUDE: it rests on the axisymmetric state, unstable to them."""
+    if not result.converged:
+        return []
+    h, r = result.scene.harmonic_set, result.nodes[:, 0]
+    return [int(m) for j, m in enumerate(h.m)
+            if m in unstable and np.abs(r ** m * result.phi[:, j]).max() < SADDLE_AMPLITUDE]
 
 
 def _solve(scene, grid, eps, start, options, prefix, checks):

@@ -179,6 +179,10 @@ def summary(res, output, print_fn):
             f"warning: phi_h reaches {a['boundary_phi']:.4f} one eps inside the box edges, "
             f"which hold -1: the box {box[0]:g}x{box[1]:g} constrains the vesicle "
             "(enlarge -pf_box, or -pf_box auto)")
+    if a.get('saddle'):
+        print_fn(f"warning: a SADDLE: the solve returned to the axisymmetric state, unstable "
+                 f"to m = {', '.join(map(str, a['start_unstable_m']))} (see -pf_perturb, "
+                 "-pf_stage1_rtol)")
     if 'sharp_note' in a:
         print_fn(f"sharp interface: {a['sharp_note']}")
     if 'topology' in a:

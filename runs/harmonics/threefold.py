@@ -41,7 +41,7 @@ def main(argv=None):
     grid = None
     for v in map(float, args.v.split(',')):
         if mpi.bcast(seconds_left(args.until), root=0) < 120:
-            rows.append([v] + ['skipped (deadline)'] + [''] * 9)
+            rows.append([v] + ['skipped (deadline)'] + [''] * 10)
             continue
         scene = pf.Scene(reduced_volume=v, c0=C0 / (2 * RADIUS), radius=RADIUS, branch='oblate',
                          symmetric=True)
@@ -52,6 +52,7 @@ def main(argv=None):
         t = time.perf_counter()
         r = pf.solve(harmonic, grid, EPS, start=threefold, checks=True)
         seconds = time.perf_counter() - t
+        index = pf.stability(r) if r.converged else None
         amplitude = np.abs(grid.nodes[:, :1] ** 3 * r.phi[:, 1]).max()
         pushed = ('m = ' + ', '.join(map(str, r.attrs['start_unstable_m']))
                   if len(r.attrs.get('start_unstable_m', [])) else
@@ -62,7 +63,7 @@ def main(argv=None):
                      f"{r.energy:.6f}" if r.converged else f"not converged ({r.message})",
                      f"{r.energy - oblate.energy:.3e}", f"{amplitude:.4f}",
                      f"{r.attrs.get('level_set_energy', np.nan):.5f}",
-                     r.attrs.get('topology', '-'),
+                     r.attrs.get('topology', '-'), '-' if index is None else index,
                      f"{r.attrs['stage1_iterations']} / {r.attrs['stage2_iterations']}",
                      f"{seconds:.0f}"])
         if mpi.Get_rank() == 0:
@@ -80,9 +81,13 @@ def write(args, record, rows):
               "the critical mode of each harmonic unstable there: 'pushed') until a three-fold "
               "state exists, then from the last v's ('continued'). lambda_3: the oblate's lowest "
               "m = 3 eigenvalue (negative: unstable). max |psi_3|: the largest r^3 |chi_3| at a "
-              "node. Newton its: stage 1 / stage 2 of the harmonic solve.", '']
+              "node. index: the three-fold state's negative eigenvalues within m = 0, 3, ... "
+              "on the constraints' tangent space (`pf.stability`: the inertia of the exact "
+              "coupled Hessian; modes outside the harmonics, m = 1, 2, 4, 5, ..., not counted). "
+              "Newton its: stage 1 / stage 2 of the harmonic solve; wall s: the harmonic "
+              "solve with its 3D checks.", '']
     lines += report.table(['v', 'E oblate', 'lambda_3', 'start', 'E three-fold',
-                           'E3 - E oblate', 'max |psi_3|', 'level-set E (3D)', 'topology',
+                           'E3 - E oblate', 'max |psi_3|', 'level-set E (3D)', 'topology', 'index',
                            'Newton its', 'wall s'], rows)
     with open(args.out, 'w') as f:
         f.write('\n'.join(lines) + '\n')

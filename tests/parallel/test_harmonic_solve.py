@@ -54,6 +54,9 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric):
                                                          'dihedral': 2, 'harmonics': [0, 2, 4]})
     assert pf.stability(at_axi) == 1 and at_axi.attrs['index_harmonics'] == 1
     assert pf.stability(r) == 0
+    # what flags a solve that came back to the saddle, and not one that left it
+    from pfmembrane.equilibrium import returned
+    assert returned(at_axi, [2]) == [2] and returned(r, [2]) == []
     assert np.abs(r.phi[:, 1]).max() > 1e-2
     # the 3D level set: one sphere; its energy put on the constraints (a level of the
     # scene's reduced volume, scaled) against the axisymmetric curve's (the smallest
