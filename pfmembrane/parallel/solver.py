@@ -184,7 +184,15 @@ class Solver:
                 slope = g.dot(d)
                 if (nneg is None or nneg == self.ncon) and slope < 0:
                     break
-                shift = SHIFT_GROWTH * applied if applied else 0.1 * scale
+                if nneg is None and not applied:
+                    # No inertia (an action): the failed step says how far to shift. It
+                    # solves Hess L_A d = -g, so d^T Hess L_A d = -slope <= 0, and the
+                    # lowest eigenvalue lies below -slope / |d|^2: shift by twice that.
+                    # A tenth of the mean diagonal, far more than a saddle's small
+                    # negative curvature, makes steps too short to leave the saddle.
+                    shift = max(2 * slope / d.dot(d), 1e-12 * scale)
+                else:
+                    shift = SHIFT_GROWTH * applied if applied else 0.1 * scale
                 P.shift_hessian(shift - applied)
                 applied = shift
             if decrement is not None and not applied and -slope <= 2 * decrement * abs(La):

@@ -3,8 +3,8 @@ mode: the axisymmetric equilibrium, its m = 0..3 spectra, then the solve with th
 m = 0, 2 (-pf_harmonics 1 -pf_dihedral 2) from phi + A r^2 chi_2 cos 2 theta, chi_2 the
 critical eigenvector scaled to max |chi_2| = 1; its energy path, its energy against the
 axisymmetric one's, the 3D level set's topology and energy; and the same solve from the
-axisymmetric state unperturbed (A = 0), which must stay on it. Under mpiexec; written to
-runs/harmonics/discocyte.md.
+axisymmetric state unperturbed (A = 0), which must stay on it; the index of both. Under
+mpiexec; written to runs/harmonics/discocyte.md.
 
     mpiexec -n 2 python runs/harmonics/discocyte.py [--amplitude 0.05] [--harmonics 1]
 """
@@ -47,7 +47,8 @@ def main(argv=None):
         start = dataclasses.replace(axi, phi=phi)
         t = time.perf_counter()
         r = pf.solve(harmonic, grid, 0.04, start=start, checks=True)
-        runs.append((amplitude, r, time.perf_counter() - t))
+        seconds = time.perf_counter() - t
+        runs.append((amplitude, r, seconds, pf.stability(r) if r.converged else None))
     if rank == 0:
         write(args, record, axi, t_axi, lowest, runs)
 
@@ -64,8 +65,8 @@ def write(args, record, axi, t_axi, lowest, runs):
               "(`analysis.field3d.projected`), +- its change between the two steps.", '']
     rows = [["axisymmetric", "-", f"{axi.energy:.8f}", "-",
              f"{axi.attrs.get('level_set_energy', float('nan')):.6f} (curve)", '1 sphere', '-',
-             '-', f"{t_axi:.1f}"]]
-    for amplitude, r, seconds in runs:
+             '-', '-', f"{t_axi:.1f}"]]
+    for amplitude, r, seconds, index in runs:
         path = r.attrs['energy_history']
         falls = bool(np.all(np.diff(path) <= 1e-12 * abs(path[0])))
         rows.append([f"m = 0, 2{', ...' if args.harmonics > 1 else ''}", f"{amplitude:g}",
@@ -73,11 +74,15 @@ def write(args, record, axi, t_axi, lowest, runs):
                      f"{r.attrs.get('level_set_energy', np.nan):.6f} +- "
                      f"{r.attrs.get('level_set_error', np.nan):.1e}",
                      r.attrs.get('topology', '-'),
-                     f"{np.abs(r.phi[:, 1]).max():.4f}", 'yes' if falls else 'no',
-                     f"{seconds:.1f}"])
+                     f"{np.abs(r.phi[:, 1]).max():.4f}", '-' if index is None else index,
+                     'yes' if falls else 'no', f"{seconds:.1f}"])
     lines += report.table(['state', 'A', 'E', 'E - E_axi', 'level-set E', 'topology',
-                           'max |chi_2|', 'E falls every iteration', 'wall s'], rows)
-    amplitude, r, _ = runs[0]
+                           'max |chi_2|', 'index', 'E falls every iteration', 'wall s'], rows)
+    lines += ['', "index: negative eigenvalues within the solve's harmonics on the constraints' "
+              "tangent space (`pf.stability` of a harmonic result: the inertia of the exact "
+              "coupled Hessian); the axisymmetric state's m = 2 mode makes it 1 there. wall s: "
+              "the solve with its 3D checks, without the index."]
+    amplitude, r, _, _ = runs[0]
     lines += ['', f"Energy path of the A = {amplitude:g} solve (E at every stage-1 Newton "
               "and augmented-Lagrangian row, then every stage-2 iteration; the constraints "
               "hold only at the end, so E alone need not fall):", '',

@@ -53,7 +53,7 @@ def main(argv=None):
         r = pf.solve(harmonic, grid, EPS, start=threefold, checks=True)
         seconds = time.perf_counter() - t
         index = pf.stability(r) if r.converged else None
-        amplitude = np.abs(grid.nodes[:, :1] ** 3 * r.phi[:, 1]).max()
+        amplitude = np.abs(grid.nodes[:, 0] ** 3 * r.phi[:, 1]).max()
         pushed = ('m = ' + ', '.join(map(str, r.attrs['start_unstable_m']))
                   if len(r.attrs.get('start_unstable_m', [])) else
                   'none' if threefold is None else 'continued')
