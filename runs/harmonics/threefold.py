@@ -1,13 +1,15 @@
 """The three-fold shapes out of the oblate at SBL's reduced spontaneous curvature c0 = 2 C0 R
-= 2.8 (pde2path's vesicle demo: C0 R = 1.4): at each v of a decreasing sequence the
-axisymmetric oblate (from the last v's) and its m = 3 eigenvalue, and the solve with the
+= 2.8 (pde2path's vesicle demo: C0 R = 1.4): at each v of a sequence (down past the oblate's
+m = 3 bifurcation, back up beyond it, which a three-fold branch reaches only if the
+bifurcation is subcritical, then down again) the axisymmetric oblate (from the last v's)
+and its m = 3 eigenvalue, and the solve with the
 harmonics m = 0, 3, ..., 3J (-pf_dihedral 3): a fresh one (the oblate solved, then pushed
 along its m = 3 critical mode where that is unstable) until a three-fold state exists, then
 from the last v's three-fold state: natural continuation in v, not arclength. eps 0.04 on
 the paper's spacing (6,124 nodes of the full box), half box. Under mpiexec; the table is
 rewritten after every v to runs/harmonics/threefold.md.
 
-    mpiexec -n 2 python runs/harmonics/threefold.py [--v 0.96,0.95,0.94,0.92,0.9]
+    mpiexec -n 2 python runs/harmonics/threefold.py [--v 0.96,0.95,0.953,0.956,0.94,...]
         [--harmonics 2] [--until HH:MM]
 """
 import argparse
@@ -28,7 +30,7 @@ C0, EPS, RADIUS = 2.8, 0.04, 0.4   # C0: the reduced 2 C0 R
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--v', default='0.96,0.95,0.94,0.92,0.9')
+    ap.add_argument('--v', default='0.96,0.95,0.953,0.956,0.94,0.93,0.92,0.9')
     ap.add_argument('--harmonics', type=int, default=2)
     ap.add_argument('--until', default=None)
     ap.add_argument('--out', default=os.path.join(HERE, 'threefold.md'))
