@@ -12,7 +12,8 @@ Where each name lives:
 
 - `Scene` (`scene`): the vesicle; `Result`, `read` (`result`): a solved state;
 - `Grid`, `adapt` (`grid`): nodes and their basis, built once; CVT-adapted grids;
-- `solve`, `stability` (`equilibrium`): an equilibrium and its azimuthal spectra;
+- `solve`, `stability` (`equilibrium`): an equilibrium and its azimuthal spectra (with
+  harmonics: its index within them);
 - `continuation`, `tangent`, `predict`, `along` (`branching`): branches;
 - `accurate` (`accuracy`): the sharp-limit energy to a tolerance, with an error bar.
 """

@@ -140,6 +140,7 @@ def test_the_block_diagonal_is_the_hessian_at_an_axisymmetric_state(problem):
     assert (Y - Z).norm() > 1e-3 * Y.norm()
 
 
+@pytest.mark.slow  # the coupled assembly: 7 sparse triple products per pair of harmonics
 def test_the_coupled_hessian_is_the_exact_action(problem):
     # the assembled coupled Hessian (every pair of harmonics) against the shell's action
     # through the kernel: the same form term for term, so rounding apart (measured 1.3e-15)
