@@ -195,7 +195,8 @@ def test_an_auto_box_holds_the_shapes_with_seven_eps_to_spare(branch, box):
     ({'harmonics': '2', 'dihedral': '2', 'mirror': '0'}, r'-pf_mirror 0: sines'),
     ({'harmonics': '1', 'dihedral': '2', 'tol': '1e-3'}, r'-pf_tol with -pf_harmonics'),
     ({'harmonics': '-1'}, r'-pf_harmonics must be >= 0'),
-], ids=['dihedral 1', 'sines', 'tol', 'negative'])
+    ({'harmonics': '1', 'dihedral': '2', 'hessian': 'full'}, r'-pf_hessian: unknown Hessian'),
+], ids=['dihedral 1', 'sines', 'tol', 'negative', 'hessian'])
 def test_what_harmonics_cannot_yet_do_is_refused(values, message):
     with pytest.raises(UsageError, match=message):
         read(values)
