@@ -7,7 +7,7 @@ the solve relaxes to another equilibrium (the oblate, whose theta-average it sha
 start from there would stay. Under mpiexec; the table is rewritten after every solve to runs/harmonics/across.md.
 
     mpiexec -n 2 python runs/harmonics/across.py [--highest 1,2,3,4,6] [--v 0.95,0.9]
-        [--until HH:MM]
+        [--until HH:MM] [--hessian block|coupled] [--out runs/harmonics/across.md]
 """
 import argparse
 import dataclasses
@@ -32,6 +32,7 @@ def main(argv=None):
     ap.add_argument('--highest', default='1,2,3,4,6')
     ap.add_argument('--v', default='0.95,0.9')
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
+    ap.add_argument('--hessian', default='block', help='-pf_hessian of the solves across')
     ap.add_argument('--out', default=os.path.join(HERE, 'across.md'))
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
@@ -51,7 +52,7 @@ def main(argv=None):
                 continue
             harmonic = dataclasses.replace(scene, harmonics=J, dihedral=2)
             t = time.perf_counter()
-            r = pf.solve(harmonic, grid, EPS, options={'pf_start': 'across'}, checks=True)
+            r = pf.solve(harmonic, grid, EPS, options={'pf_start': 'across', 'pf_hessian': args.hessian}, checks=True)
             seconds = time.perf_counter() - t
             rows.append([v, J, f"{r.energy:.6f}" if r.converged else f"not converged ({r.message})",
                          f"{(r.energy / axi.energy - 1) * 100:+.3f}%",
@@ -80,7 +81,7 @@ def write(args, record, rows, axis):
     lines = report.header('A prolate across the axis against the axisymmetric prolate', record)
     lines += [f"eps {EPS}, box {BOX[0]} x {BOX[1]} (half box z >= {BOX[1] / 2}), {NODES} nodes "
               "of the full box (the paper's spacing), 2 ranks. Harmonics m = 0, 2, ..., 2J "
-              "(cosines), every J from the triaxial start. Level-set E: the 3D surface put on "
+              f"(cosines), every J from the triaxial start, -pf_hessian {args.hessian}. Level-set E: the 3D surface put on "
               "the constraints (NaN where no level of phi_h has the scene's reduced volume). "
               "Half-lengths: the farthest node with phi_h > 0 along x (theta = 0) and along "
               "z from the centre.", '',
