@@ -113,18 +113,16 @@ def critical_start(axisymmetric, scene, grid, options=None):
         for j, m in enumerate(h.m):
             if m == 0:
                 continue
-            s = analysis.spectrum(m)
-            critical = [v for v, rigid in zip(s.vectors, s.rigid) if not rigid > RIGID]
-            lowest = [e for e, rigid in zip(s.eigenvalues, s.rigid) if not rigid > RIGID]
-            if not lowest or lowest[0] >= 0:
+            lowest, vector = _critical(analysis.spectrum(m))
+            if not lowest < 0:
                 continue
-            chi = problem.nodal(critical[0], 0.0)
+            chi = problem.nodal(vector, 0.0)
             phi[:, j] = perturb * chi / np.abs(r ** m * chi).max()
             unstable.append(int(m))
             if problem.settings.summary:
                 PETSc = petsc.start()
                 PETSc.Sys.Print(f"start: the axisymmetric state is unstable to m = {m} "
-                                f"(lowest eigenvalue {lowest[0]:.4g}): pushed along it by "
+                                f"(lowest eigenvalue {lowest:.4g}): pushed along it by "
                                 f"{perturb:g}", comm=grid.comm)
     return dataclasses.replace(axisymmetric, phi=phi), np.array(unstable, dtype=int)
 
@@ -255,10 +253,17 @@ def stability(result, modes=6, nev=3, options=None, prefix=None, grid=None):
     result.attrs.update(
         index_m=np.array([s.index - np.count_nonzero((s.rigid > RIGID) & (s.eigenvalues < 0))
                           for s in spectra]),
-        lowest_m=np.array([min([v for v, r in zip(s.eigenvalues, s.rigid) if not r > RIGID],
-                               default=np.nan) for s in spectra]),
+        lowest_m=np.array([_critical(s)[0] for s in spectra]),
         time_modes=sum(s.time for s in spectra))
     return spectra
+
+
+def _critical(spectrum):
+    """The lowest eigenvalue of a mode's `spectrum` that is no rigid motion,
+    and its vector: (NaN, None) without one."""
+    return next(((e, v) for e, v, rigid in zip(spectrum.eigenvalues, spectrum.vectors,
+                                                 spectrum.rigid) if not rigid > RIGID),
+                (np.nan, None))
 
 
 def _harmonic_stability(result, grid, options, prefix):
@@ -273,7 +278,7 @@ def _harmonic_stability(result, grid, options, prefix):
     try:
         with Problem(grid, result.scene, result.eps, prefix or next_prefix(),
                      {**(options or {}), 'pf_hessian': 'coupled'}) as problem:
-            index = problem.index(result.phi, result.nu[0])
+            index = problem.index(result.phi, result.nu)
     finally:
         stage.pop()
     result.attrs.update(index_harmonics=-1 if index is None else index,

@@ -85,7 +85,7 @@ class HarmonicForms:
         self.grad_V = 0.5 * (ops.B0.T @ (self.w * self.R * mean_T)).ravel()
         self.grad_M = (ops.B0.T @ (self.w * self.R * mean_T * (ops.z - zc)[:, None])).ravel()
         self.shape = (ops.B0.shape[1], nh)
-        self._interleaved = self._coupled = None
+        self._interleaved = self._coupled = self._E = None
 
     # -- fields ------------------------------------------------------------------
     def _coefficients(self, chi):
@@ -168,24 +168,31 @@ class HarmonicForms:
                            t=a * p(ut, True))
         return self._integrals(u, ur, uz, ut, W), gE.ravel(), gA.ravel()
 
-    def linearization(self, chi, sigma):
-        """v -> (Hess E - sigma Hess A) v at chi (local contributions, flat; V
-        and M are linear): the state's fields computed once for every product
-        of a Krylov solve, the coupled Hessian never formed."""
+    def _second_variation(self, chi, sigma):
+        """The coefficients of the second variation of E - sigma A at chi, per
+        quadrature point and theta point: (K_uu, K_ul, K_ll, K_grad) of
+
+            K_uu du^2 + 2 K_ul du dLap + K_ll dLap^2 + K_grad |grad du|^2,
+
+        from E's (eps Lap u + W(u))^2 / eps and A's double well and gradient;
+        K_ll and K_grad are constants."""
         u, _, _, _, lap = self.fields(chi)
         W, dW, d2W = self._W(u, lap)
-        eps, cE = self.eps, F_E * self.k / (2 * self.eps)
-        area = (3 * u * u - 1.0) / eps
-        curvature = W * d2W
+        eps, c = self.eps, F_E * self.k / self.eps       # c = 2 cE
+        return (c * (dW * dW + W * d2W) - sigma * F_A * (3 * u * u - 1.0) / eps,
+                c * eps * dW, c * eps * eps, -sigma * F_A * eps)
+
+    def linearization(self, chi, sigma):
+        """v -> (Hess E - sigma Hess A) v at chi (local contributions, flat; V
+        and M are linear): the state's coefficients computed once for every
+        product of a Krylov solve, the coupled Hessian never formed."""
+        uu, ul, ll, grad = self._second_variation(chi, sigma)
         p = self._project
 
         def action(v):
             du, dur, duz, dut, dlap = self.fields(v, offsets=False)
-            dWv = eps * dlap + dW * du   # the directional derivative of W
-            b = -sigma * F_A * eps
-            value = 2 * cE * (dWv * dW + curvature * du) - sigma * F_A * area * du
-            return self._adjoint(u=p(value), r=b * p(dur), z=b * p(duz), t=b * p(dut, True),
-                                 lap=2 * cE * eps * p(dWv)).ravel()
+            return self._adjoint(u=p(uu * du + ul * dlap), r=grad * p(dur), z=grad * p(duz),
+                                 t=grad * p(dut, True), lap=p(ul * du + ll * dlap)).ravel()
         return action
 
     def coupled_hessian(self, chi, sigma):
@@ -193,49 +200,55 @@ class HarmonicForms:
         harmonics coupled (CSR on `coupled_pattern`): the form of
         `linearization` assembled, sum over the field pairs (f, g) of
         E_f^j^T diag(w mean_theta(K_fg tau_f^j tau_g^k)) E_g^k, with E_f^j
-        harmonic j's map chi_j -> field f / T_j (u, u_r, u_z, u_theta / r,
-        Lap u) and tau = T_j (T_j' for u_theta / r). nh^2 times the
-        axisymmetric Hessian's entries: for a factorization that must be
-        exact (an index, `parallel.harmonic`), not for the Krylov solves."""
-        u, _, _, _, lap = self.fields(chi)
-        W, dW, d2W = self._W(u, lap)
-        eps, c = self.eps, F_E * self.k / self.eps       # c = 2 cE
-        stretch = -sigma * F_A * eps
-        pairs = (('u', 'u', c * dW * dW + c * W * d2W - sigma * F_A * (3 * u * u - 1.0) / eps),
-                 ('u', 'l', c * eps * dW), ('l', 'u', c * eps * dW), ('l', 'l', c * eps * eps),
-                 ('r', 'r', stretch), ('z', 'z', stretch), ('t', 't', stretch))
+        harmonic j's map chi_j -> field f / T_j (`_field_operators`) and tau =
+        T_j (T_j' for u_theta / r). nh^2 times the axisymmetric Hessian's
+        entries: for a factorization that must be exact (an index,
+        `parallel.harmonic`), not for the Krylov solves."""
+        uu, ul, ll, grad = self._second_variation(chi, sigma)
+        pairs = (('u', 'u', uu), ('u', 'l', ul), ('l', 'u', ul), ('l', 'l', ll),
+                 ('r', 'r', grad), ('z', 'z', grad), ('t', 't', grad))
         o, h, nh = self.ops, self.h, len(self.h)
-        R, dR, R1 = self.R, self.dR, self.R1
         diag = scipy.sparse.diags
-        E = [dict(u=diag(R[:, j]) @ o.B0, z=diag(R[:, j]) @ o.Bz, t=diag(R1[:, j]) @ o.B0,
-                  r=diag(R[:, j]) @ o.Br + diag(dR[:, j]) @ o.B0,
-                  l=diag(R[:, j]) @ o.BL + diag(2 * dR[:, j]) @ o.Br) for j in range(nh)]
+        E = self._field_operators()
         tau = {f: (h.dT if f == 't' else h.T) for f in 'uzrlt'}
-        blocks = [[None] * nh for _ in range(nh)]
+        # block (j, k) at rows nh a + j, columns nh b + k; (k, j) its transpose
+        rows, cols, data = [], [], []
         for j in range(nh):
             for k in range(j, nh):
                 block = 0
                 for f, g, K in pairs:
                     mean = np.mean(np.asarray(K) * tau[f][:, j] * tau[g][:, k], axis=-1)
-                    if not np.any(mean):
-                        continue
-                    block = block + E[j][f].T @ diag(o.w * mean) @ E[k][g]
-                blocks[j][k] = scipy.sparse.csr_matrix(block) if not np.isscalar(block) else None
-                blocks[k][j] = None if blocks[j][k] is None else blocks[j][k].T
-        n = self.shape[0]
-        H = scipy.sparse.bmat([[b if b is not None else scipy.sparse.csr_matrix((n, n))
-                                for b in row] for row in blocks]).tocsr()
-        # (harmonic j, node a) -> nh a + j, then onto the pattern (structural zeros kept)
-        order = (nh * np.arange(n)[None, :] + np.arange(nh)[:, None]).ravel()
-        H = scipy.sparse.csr_matrix((H.data, order[H.indices], H.indptr), shape=H.shape)
-        H = H[np.argsort(order)]
+                    if np.any(mean):
+                        block = block + E[j][f].T @ diag(o.w * mean) @ E[k][g]
+                if np.isscalar(block):
+                    continue
+                B = block.tocoo()
+                for a, b, first, second in ((B.row, B.col, j, k), (B.col, B.row, k, j))[:1 + (k > j)]:
+                    rows.append(nh * a + first)
+                    cols.append(nh * b + second)
+                    data.append(B.data)
         P = self.coupled_pattern()
-        H = (H + scipy.sparse.csr_matrix((np.zeros(P.nnz), P.indices, P.indptr),
-                                         shape=P.shape)).tocsr()
+        # onto the pattern, its structural zeros kept
+        H = scipy.sparse.csr_matrix((np.concatenate(data), (np.concatenate(rows),
+                                                            np.concatenate(cols))),
+                                    shape=P.shape) + P
         H.sort_indices()
         if H.nnz != P.nnz:
             raise RuntimeError("the coupled Hessian leaves its pattern")
         return H
+
+    def _field_operators(self):
+        """Per harmonic j the sparse maps chi_j -> (u, u_r, u_z, u_theta / r,
+        Lap u) / T_j at the quadrature points, keyed 'u r z t l'; built once."""
+        if self._E is None:
+            o, R, dR, R1 = self.ops, self.R, self.dR, self.R1
+            diag = scipy.sparse.diags
+            self._E = [dict(u=diag(R[:, j]) @ o.B0, z=diag(R[:, j]) @ o.Bz,
+                            t=diag(R1[:, j]) @ o.B0,
+                            r=diag(R[:, j]) @ o.Br + diag(dR[:, j]) @ o.B0,
+                            l=diag(R[:, j]) @ o.BL + diag(2 * dR[:, j]) @ o.Br)
+                       for j in range(len(self.h))]
+        return self._E
 
     def coupled_pattern(self):
         """The sparsity of `coupled_hessian`: the grid's Hessian pattern for

@@ -186,24 +186,20 @@ class Problem:
         return self.solver.negative_pivots(ksp)
 
     # -- stability ---------------------------------------------------------------
-    def index(self, phi, nu_area):
-        """The index of the state `phi` (nodal, with harmonics) with tension
-        `nu_area` within the problem's harmonics: the negative eigenvalues of
-        the Hessian of L on the constraints' tangent space, the negative
-        pivots of the exact bordered [[H, -C^T], [-C, 0]] (its `coupled`
-        assembly; -pf_hessian coupled) less the ncon of the constraints.
-        With cosines only and n >= 2 no rigid motion lies in the harmonics.
-        The factorization under the prefix + 'index_'. Collective."""
-        a, solver = self.assembly, self.solver
-        if a.krylov:
+    def index(self, phi, nu):
+        """The index of the state `phi` (nodal, with harmonics) with multipliers
+        `nu` within the problem's harmonics: the negative eigenvalues of the
+        Hessian of L on the constraints' tangent space, the negative pivots of
+        its factored bordered Jacobian (`jacobian`, exact only with the
+        `coupled` assembly: -pf_hessian coupled) less the ncon of the
+        constraints. With cosines only and n >= 2 no rigid motion lies in the
+        harmonics. Collective."""
+        if self.assembly.krylov:
             raise ValueError("an index needs the exact Hessian: -pf_hessian coupled")
-        x = self.vec(phi)
-        solver.evaluate(x)
-        a.assemble_bordered(x, nu_area, solver.C, 0.0)
-        ksp = solver.direct_ksp('index_')
-        ksp.setOperators(a.bordered_matrix())
+        self.nu = nu
+        ksp = self.jacobian(self.vec(phi))
         ksp.setUp()
-        nneg = solver.negative_pivots(ksp)
+        nneg = self.negative_pivots(ksp)
         return None if nneg is None else nneg - self.ncon
 
     def modes(self, phi, nu_area, nev=3):

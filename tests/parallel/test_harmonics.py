@@ -127,17 +127,22 @@ def test_the_block_diagonal_is_the_hessian_at_an_axisymmetric_state(problem):
     gE, gA = P.create_vec(), P.create_vec()
     P.gradients(x0, gE, gA)
     K = P.assemble_bordered(x0, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
-    X, Y = K.createVecs()
-    X.setRandom(PETSc.Random().create(P.comm))
-    Z = Y.duplicate()
-    K.mult(X, Y)
-    P.jacobian_operator().mult(X, Z)
+    Y, Z = _products(K, P.jacobian_operator(), P.comm)
     assert (Y - Z).norm() <= 1e-11 * Y.norm()
     # and not away from it: the harmonics couple there
     P.assemble_bordered(x, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
-    K.mult(X, Y)
-    P.jacobian_operator().mult(X, Z)
+    Y, Z = _products(K, P.jacobian_operator(), P.comm)
     assert (Y - Z).norm() > 1e-3 * Y.norm()
+
+
+def _products(K, J, comm):
+    """K X and J X for one random X of the bordered layout."""
+    X, Y = K.createVecs()
+    X.setRandom(PETSc.Random().create(comm))
+    Z = Y.duplicate()
+    K.mult(X, Y)
+    J.mult(X, Z)
+    return Y, Z
 
 
 @pytest.mark.slow  # the coupled assembly: 7 sparse triple products per pair of harmonics
@@ -152,11 +157,7 @@ def test_the_coupled_hessian_is_the_exact_action(problem):
     P.assemble_bordered(x, SIGMA, [gA, P.grad_V, P.grad_M], 0.0)
     K = Q.assemble_bordered(x, SIGMA, [gA, Q.grad_V, Q.grad_M], 0.0)
     assert Q.jacobian_operator() is K
-    X, Y = K.createVecs()
-    X.setRandom(PETSc.Random().create(P.comm))
-    Z = Y.duplicate()
-    K.mult(X, Y)
-    P.jacobian_operator().mult(X, Z)
+    Y, Z = _products(K, P.jacobian_operator(), P.comm)
     assert (Y - Z).norm() <= 1e-12 * Y.norm()
 
 
