@@ -22,7 +22,16 @@ the adaptive sequences of options/adapt/ do by hand:
   1.5 times the median spacing, `_lattice_resolves`): the previous grid when
   it resolves eps, else a uniform grid of the box sized for eps (`Scene.sized`;
   a fixed box stays) with spacing h = eps / 1.75 on the hexagonal lattice, about
-  Rb Zb / (sqrt3/2 h^2) nodes of the full box. Where that grid would exceed
+  Rb Zb / (sqrt3/2 h^2) nodes of the full box; or, where the first step's
+  membrane is known (the sharp start) and a grid graded about it
+  (`graded_grid`: that spacing within 4 eps of the membrane, growing by 0.3
+  per unit distance beyond) has half the nodes or fewer, graded grids for the
+  whole sequence, each about the previous usable step's phi_h = 0 (one kind of
+  grid in a sequence, so that the bar compares like with like: on the
+  stomatocyte at v 0.6 the level set of a graded grid at eps 0.00876 was
+  +0.0104% from the sharp energy, of a uniform one +0.0046%,
+  runs/accuracy/graded.md). Their count grows like 1 / eps, the uniform
+  one's like 1 / eps^2: narrow necks become affordable. Where that grid would exceed
   `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the
   previous result's nodes relocated by CVT (`grid.adapt`'s density
   1 + f |grad phi_h| with a `band` of 2 eps: f 10, then 100, then 2, 4, ...
@@ -102,6 +111,12 @@ ADAPT_GAMMA = 0.4
 # "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and more). 1/8 puts eps0 at 0.0124, 12%
 # under the largest eps that resolved, 38% under the one that pinched.
 FRACTION = 0.125
+# Graded grids. The band of spacing eps / H_RATIO reaches GRADED_WIDTH eps from
+# the membrane, where the profile's 1 + phi = 2 exp(-sqrt2 d / eps) is down to 7e-3; beyond,
+# the spacing grows by GRADING per unit distance (`graded_grid`; runs/accuracy/graded.md).
+GRADED_WIDTH = 4.0
+GRADING = 0.3
+GRADED_GAIN = 2.0  # a graded grid replaces the uniform one with this many times fewer nodes
 MAX_FAILED = 2           # unconverged solves in a row that end the sequence
 EXPECTED = {'torus': '1 torus'}  # phi_h = 0 of each family; the others '1 sphere'
 SCENE_KEYS = ('reduced_volume', 'c0', 'radius', 'k', 'branch', 'symmetric')
@@ -121,6 +136,7 @@ class Step:
     note: str
     feature: float = math.nan  # the smallest feature of its phi_h = 0 (NaN: not measured)
     feature_kind: str = ''
+    grid: str = ''  # how its grid was made (`_plan`)
 
 
 def uniform_nodes(box, eps):
@@ -133,14 +149,9 @@ def sharp_feature(scene):
     """The smallest feature (`levelset.Feature`) of the scene's sharp start, where its
     family starts from one (the stomatocyte: `starts.sharp_shape`), else None (the
     spheroids and the torus: no narrow feature to resolve first). Not collective."""
-    from pfmembrane.io.options import start_kind
-    if start_kind(scene.branch) != 'sharp':
-        return None
-    from pfmembrane import starts
     from pfmembrane.analysis.levelset import smallest_feature
-    try:
-        shape = starts.sharp_shape(scene)
-    except UsageError:
+    shape = _sharp_shape(scene)
+    if shape is None:
         return None
     return smallest_feature((np.asarray(shape.r), np.asarray(shape.z)))
 
@@ -281,7 +292,8 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             break
         t_step = time.perf_counter()
         plan = _plan(scene, eps, prev if prev is not None and steps[-1].usable else None,
-                     steps[-1] if steps else None, adapt, band, params, max_nodes, comm)
+                     steps[-1] if steps else None, adapt, band, params, max_nodes, comm,
+                     graded=steps[0].grid.startswith('graded') if steps else None)
         if isinstance(plan, str):
             if not steps:
                 raise UsageError(f"-pf_tol_nodes {max_nodes}: the first step (eps {eps:g}) "
@@ -289,7 +301,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             stop = (f"node budget: no grid of at most {max_nodes} nodes resolves eps {eps:.4g} "
                     f"(a uniform one: {plan})")
             break
-        step_scene, grid, start, how = plan
+        step_scene, grid, start, how, resolves = plan
         if steps:
             last = steps[-1]
             predicted = last.wall * (grid.n_nodes / max(last.nodes, 1)) ** 1.5
@@ -317,11 +329,9 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         wall = mpi.allreduce(time.perf_counter() - t_step, op=_max())
         f = (grid.adapt_info['f'] if grid.adapt_info else
              steps[-1].adapt if how == 'previous grid' else 0.0)
-        resolves = (steps[-1].eps_min if how == 'previous grid' else
-                    grid.eps_min if grid.adapt_info else _lattice_resolves(grid))
         steps.append(Step(eps, grid.n_nodes, resolves, estimate if usable else math.nan,
                           usable, res.converged, wall, f, note,
-                          *(feature if feature else (math.nan, ''))))
+                          *(feature if feature else (math.nan, '')), how))
         value, bar = error_bar(steps)
         res.attrs.update(wall_time=wall, tol_step=k, tol_usable=int(usable), tol_note=note,
                          tol_adapt=f, tol_resolves=resolves,
@@ -385,10 +395,12 @@ def _step_path(directory, k):
     return os.path.join(directory, f"step{k}.h5")
 
 
-def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
-    """(scene on the grid's box, grid, start, how) for a step at `eps` after the usable
-    result `prev` (None: a fresh start), or a string (the node count needed) when every
-    grid that resolves eps exceeds `max_nodes`."""
+def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm, graded=None):
+    """(scene on the grid's box, grid, start, how, resolves) for a step at `eps` after
+    the usable result `prev` (None: a fresh start), `resolves` the smallest eps the grid
+    resolves; or a string (the node count needed) when every grid that resolves eps
+    exceeds `max_nodes`. `graded`: whether the sequence's grids are graded (`graded_grid`;
+    None: the first step's, which decides)."""
     half = 2 if scene.symmetric else 1
     sized = scene.sized(eps)
     count = uniform_nodes(sized.box, eps)
@@ -397,12 +409,18 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
         if last.eps_min <= eps:   # the previous grid resolves eps: the same basis
             grid = prev.grid if prev.grid is not None and prev.grid.fits(on_box) else \
                 Grid.of(prev, comm=comm, **{k: v for k, v in params.items() if k == 'partition'})
-            return on_box, grid, prev, 'previous grid'
+            return on_box, grid, prev, 'previous grid', last.eps_min
         if adapt is True or (adapt == 'auto' and count // half > max_nodes):
             ceiling = max_nodes if adapt == 'auto' else min(max_nodes, count // half - 1)
             found = _adapted(on_box, prev, last.adapt, eps, band, ceiling, params, comm)
             if found is not None:
-                return (on_box, *found)
+                return (on_box, *found, found[0].eps_min)
+    start = _moved(prev, sized) if prev is not None else None
+    if adapt == 'auto' and graded is not False:
+        found = graded_grid(sized, eps, start, count // half if graded is None else math.inf,
+                            max_nodes, params, comm)
+        if found is not None:
+            return (sized, *found)
     if count // half > max_nodes:
         return f"{count // half} nodes"
     grid = Grid.uniform(sized, count, comm=comm, **params)
@@ -411,8 +429,54 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
         if count // half > max_nodes:
             return f"{count // half} nodes"
         grid = Grid.uniform(sized, count, comm=comm, **params)
-    start = _moved(prev, sized) if prev is not None else None
-    return sized, grid, start, f"uniform {sized.box[0]:g}x{sized.box[1]:g}"
+    return (sized, grid, start, f"uniform {sized.box[0]:g}x{sized.box[1]:g}",
+            _lattice_resolves(grid))
+
+
+def graded_grid(scene, eps, start=None, uniform=math.inf, max_nodes=MAX_NODES, params=None,
+                comm=None):
+    """(grid, start, how, resolves): a grid of `scene` (a sized box) graded about the membrane (`kernels.grading`:
+    spacing eps / H_RATIO within GRADED_WIDTH eps of it, growing by GRADING per unit
+    distance up to the first step's uniform spacing) where it has GRADED_GAIN times fewer
+    nodes than the `uniform` grid; the membrane is phi_h = 0 of `start` (in the scene's
+    box), else the scene's sharp start (`sharp_shape`); None where there is neither, the
+    gain is smaller, the grid exceeds `max_nodes` or does not resolve eps."""
+    from pfmembrane.analysis.levelset import membrane
+    from pfmembrane.kernels import grading
+    if start is not None:
+        curves, of = membrane(start), f"step {start.attrs.get('tol_step', '?')}'s phi_h = 0"
+    else:
+        shape = _sharp_shape(scene)
+        curves = [] if shape is None else [
+            np.column_stack([shape.r, np.asarray(shape.z) + scene.zc])]
+        of = 'the sharp start'
+    if not curves:
+        return None
+    h0, h_max = eps / H_RATIO, FIRST_EPS * scene.radius
+    for _ in range(2):
+        shape_args = (curves, scene.box, h0, GRADED_WIDTH * eps, GRADING, h_max, scene.plane)
+        count = grading.graded_count(*shape_args)
+        if count > max_nodes or GRADED_GAIN * count > uniform:
+            return None
+        nodes, _, _ = grading.graded_nodes(*shape_args)
+        grid = Grid(scene, nodes, comm=comm, **(params or {}))
+        if grid.eps_min <= eps:
+            return grid, start, (f"graded about {of}: h {h0:.3g} within "
+                                 f"{GRADED_WIDTH * eps:.3g}, grading {GRADING:g}"), grid.eps_min
+        h0 *= eps / grid.eps_min / 1.02  # the CVT came out coarse: once more, finer
+    return None
+
+
+def _sharp_shape(scene):
+    """The scene's sharp start, where its family has one (`sharp_feature`), else None."""
+    from pfmembrane.io.options import start_kind
+    if start_kind(scene.branch) != 'sharp':
+        return None
+    from pfmembrane import starts
+    try:
+        return starts.sharp_shape(scene)
+    except UsageError:
+        return None
 
 
 def _lattice_resolves(grid):
@@ -509,7 +573,7 @@ def _resume(directory, scene, mpi, say):
                           bool(a['converged']), float(a['wall_time']),
                           float(a.get('tol_adapt', 0.0)), str(a.get('tol_note', '')),
                           float(a.get('tol_feature', math.nan)),
-                          str(a.get('tol_feature_kind', ''))))
+                          str(a.get('tol_feature_kind', '')), str(a.get('tol_grid', ''))))
         last = res
     if steps:
         say(f"tol: resuming after step {len(steps) - 1} found in {directory}")

@@ -196,3 +196,40 @@ def test_an_under_resolved_step_jumps_to_the_feature():
     assert accuracy.next_eps([usable], 0.5, 0.04, sharp)[0] == pytest.approx(0.015)
     assert accuracy.next_eps([pinched], 0.5, 0.04, None) == (pytest.approx(0.02), None)
     assert accuracy.next_eps([], 0.5, 0.04, sharp) == (0.04, None)
+
+
+def test_the_first_step_decides_whether_the_sequence_is_graded(monkeypatch):
+    asked = []
+
+    def graded(scene, eps, start, uniform, max_nodes, params, comm):
+        asked.append(uniform)
+        return 'grid', start, 'graded about the sharp start', 0.9 * eps
+
+    monkeypatch.setattr(accuracy, 'graded_grid', graded)
+    scene, count = pf.Scene(box='auto'), accuracy.uniform_nodes(pf.Scene(box='auto').sized(
+        0.04).box, 0.04)
+    plan = accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, 10 ** 6, None)
+    assert plan[1:] == ('grid', None, 'graded about the sharp start', 0.9 * 0.04)
+    assert asked == [count]                   # the first step: graded where it gains
+    accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, 10 ** 6, None, graded=True)
+    assert asked[-1] == math.inf              # a graded sequence stays graded
+    for adapt, grade in (('auto', False), (False, None)):  # a uniform one stays uniform
+        monkeypatch.setattr(accuracy.Grid, 'uniform', classmethod(lambda *a, **k: 'uniform'))
+        monkeypatch.setattr(accuracy, '_lattice_resolves', lambda grid: 0.03)
+        plan = accuracy._plan(scene, 0.04, None, None, adapt, 2.0, {}, 10 ** 6, None,
+                              graded=grade)
+        assert plan[1] == 'uniform' and len(asked) == 2
+
+
+@pytest.mark.slow  # one solve of 7,300 nodes on one rank: about 40 s
+def test_a_narrow_neck_gets_a_graded_grid_that_resolves_it(comm):
+    # the stomatocyte at v 0.6 at eps 0.0085: the uniform auto-box grid has about 18,000
+    # nodes, the grid graded about its sharp start about 7,300; one step (a 1 s budget)
+    stomatocyte = pf.Scene(branch='stomatocyte', reduced_volume=0.6, box='auto')
+    res = pf.accurate(stomatocyte, 1e-4, eps0=0.0085, max_time=1.0, comm=comm)
+    a = res.attrs
+    assert a['tol_grid'].startswith('graded about the sharp start')
+    assert 2 * res.grid.n_nodes < accuracy.uniform_nodes(res.scene.box, 0.0085)
+    assert res.grid.eps_min <= 0.0085 and res.converged and res.topology == '1 sphere'
+    # the level set within 3e-4 of the sharp 12.424253 (runs/accuracy/tol.md)
+    assert res.level_set_energy == pytest.approx(12.424253, rel=3e-4)
