@@ -24,14 +24,12 @@ the adaptive sequences of options/adapt/ do by hand:
   a fixed box stays) with spacing h = eps / 1.75 on the hexagonal lattice, about
   Rb Zb / (sqrt3/2 h^2) nodes of the full box; or, where the first step's
   membrane is known (the sharp start) and a grid graded about it
-  (`graded_grid`: that spacing within 4 eps of the membrane, growing by 0.3
+  (`graded_grid`: that spacing within 8 eps of the membrane, growing by 0.3
   per unit distance beyond) has half the nodes or fewer, graded grids for the
   whole sequence, each about the previous usable step's phi_h = 0 (one kind of
-  grid in a sequence, so that the bar compares like with like: on the
-  stomatocyte at v 0.6 the level set of a graded grid at eps 0.00876 was
-  +0.0104% from the sharp energy, of a uniform one +0.0046%,
-  runs/accuracy/graded.md). Their count grows like 1 / eps, the uniform
-  one's like 1 / eps^2: narrow necks become affordable. Where that grid would exceed
+  grid in a sequence, so that the bar compares like with like). Their count
+  grows like 1 / eps, the uniform one's like 1 / eps^2: narrow necks become
+  affordable (runs/accuracy/graded.md). Where that grid would exceed
   `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the
   previous result's nodes relocated by CVT (`grid.adapt`'s density
   1 + f |grad phi_h| with a `band` of 2 eps: f 10, then 100, then 2, 4, ...
@@ -111,10 +109,14 @@ ADAPT_GAMMA = 0.4
 # "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and more). 1/8 puts eps0 at 0.0124, 12%
 # under the largest eps that resolved, 38% under the one that pinched.
 FRACTION = 0.125
-# Graded grids. The band of spacing eps / H_RATIO reaches GRADED_WIDTH eps from
-# the membrane, where the profile's 1 + phi = 2 exp(-sqrt2 d / eps) is down to 7e-3; beyond,
-# the spacing grows by GRADING per unit distance (`graded_grid`; runs/accuracy/graded.md).
-GRADED_WIDTH = 4.0
+# Graded grids. The band of spacing eps / H_RATIO reaches GRADED_WIDTH eps from the membrane,
+# where the profile's 1 + phi = 2 exp(-sqrt2 d / eps) is down to 2e-5; beyond, the spacing
+# grows by GRADING per unit distance (`graded_grid`). Measured on 2 ranks, the stomatocyte at
+# v 0.6, eps 0.00876: with 4 eps (1 + phi 7e-3 where the spacing starts to grow) E came out
+# 1.2% above the uniform grid's (12.58205 against 12.42949), with 6 eps the solve did not
+# converge, with 8 eps 0.03% above (12.43355) on 11,768 nodes against 15,824; a grading of
+# 0.6 saved 4% of the nodes and lost accuracy (12.43682).
+GRADED_WIDTH = 8.0
 GRADING = 0.3
 GRADED_GAIN = 2.0  # a graded grid replaces the uniform one with this many times fewer nodes
 MAX_FAILED = 2           # unconverged solves in a row that end the sequence

@@ -67,7 +67,7 @@ def main(argv=None):
         lines += ["2 ranks, R 0.4, reduced c0 = 2 C0 R, the box of `-pf_box auto` for each eps. "
                   "uniform: the hexagonal grid of spacing eps / 1.75 that `-pf_tol` builds; "
                   "graded: `accuracy.graded_grid` about the sharp start (spacing eps / 1.75 "
-                  "within 4 eps of the membrane, growing by 0.3 per unit distance up to 0.04). "
+                  "within 8 eps of the membrane, growing by 0.3 per unit distance up to 0.04). "
                   "Both start from the sharp shape. set-up: the grid (nodes, basis, "
                   "operators); wall: set-up and solve with its checks. error: the level set's "
                   "own energy against the sharp solver's.", '']
