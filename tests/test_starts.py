@@ -120,6 +120,12 @@ def test_the_pear_start_is_two_unequal_spheres():
     assert kind == 'spheres' and radii[1] == pytest.approx(initial.PEAR_RATIO * radii[0])
     with pytest.raises(UsageError, match='pair of spheres'):
         check_fits(replace(p, reduced_volume=0.7))
+    # below 0.7384 two touching spheres of ratio 0.7 enclose too much: the ratio whose
+    # touching spheres enclose v (about 0.77 at v 0.73)
+    kind, (radii, heights) = check_fits(replace(p, reduced_volume=0.73))
+    ratio = radii[1] / radii[0]
+    assert 0.7 < ratio < 0.85
+    assert heights[1] - heights[0] == pytest.approx(radii[0] + radii[1], rel=1e-6)  # touching
 
 
 @pytest.mark.parametrize('branch', ['stomatocyte', 'pear'])

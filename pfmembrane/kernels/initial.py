@@ -234,7 +234,19 @@ def construction(kind, branch, area, volume):
         return spheroid_axes(area, volume, branch)
     if kind == 'torus':
         return torus_radii(area, volume)
-    return two_spheres(area, volume, PEAR_RATIO if branch == 'pear' else 1.0)
+    return two_spheres(area, volume, pear_ratio(area, volume) if branch == 'pear' else 1.0)
+
+
+def pear_ratio(area, volume):
+    """The pear's radius ratio: PEAR_RATIO, or where two touching spheres of that ratio
+    enclose more than `volume` (reduced volume below 0.7384), the ratio whose touching
+    spheres enclose it (1 at 1/sqrt 2, below which no two spheres do)."""
+    R = np.sqrt(area / (4.0 * np.pi))
+    v = volume / (4.0 / 3.0 * np.pi * R ** 3)
+    touching = lambda q: (1.0 + q ** 3) / (1.0 + q * q) ** 1.5  # noqa: E731
+    if v >= touching(PEAR_RATIO) or v < touching(1.0):
+        return PEAR_RATIO
+    return brentq(lambda q: touching(q) - v, PEAR_RATIO, 1.0, xtol=1e-14)
 
 
 def extent(kind, shape):
