@@ -12,7 +12,7 @@ the adaptive sequences of options/adapt/ do by hand:
   step starts from the previous usable step's phi_h (its tanh profile rescaled
   to the new eps), or from the scene's start after an unusable one;
 - **resolution follows the shape**: where the family starts from its sharp shape
-  (the stomatocyte), eps0 is at most FRACTION times that curve's smallest
+  (the stomatocyte), eps0 is at most FIRST_FRACTION times that curve's smallest
   feature (`levelset.smallest_feature`: a neck, the gap between two membranes,
   a torus's hole; `first_eps`), and after every usable step the feature of its
   phi_h = 0 is measured (`tol_feature`). After an under-resolved step the next
@@ -22,14 +22,15 @@ the adaptive sequences of options/adapt/ do by hand:
   1.5 times the median spacing, `_lattice_resolves`): the previous grid when
   it resolves eps, else a uniform grid of the box sized for eps (`Scene.sized`;
   a fixed box stays) with spacing h = eps / 1.75 on the hexagonal lattice, about
-  Rb Zb / (sqrt3/2 h^2) nodes of the full box; or, where the first step's
-  membrane is known (the sharp start) and a grid graded about it
-  (`graded_grid`: that spacing within 8 eps of the membrane, growing by 0.3
-  per unit distance beyond) has half the nodes or fewer, graded grids for the
-  whole sequence, each about the previous usable step's phi_h = 0 (one kind of
-  grid in a sequence, so that the bar compares like with like). Their count
-  grows like 1 / eps, the uniform one's like 1 / eps^2: narrow necks become
-  affordable (runs/accuracy/graded.md). Where that grid would exceed
+  Rb Zb / (sqrt3/2 h^2) nodes of the full box; or, where the membrane is known
+  (the previous usable step's phi_h = 0, else the sharp start) and a grid
+  graded about it (`graded_grid`: that spacing within 8 eps of the membrane,
+  growing by 0.3 per unit distance beyond) has half the nodes or fewer, that
+  grid. Its count grows like 1 / eps, the uniform one's like 1 / eps^2: narrow
+  necks become affordable. Both kinds give the same level set (the stomatocyte
+  at v 0.6: 12.425533 and 12.425532 at eps 0.0124, 12.424835 and 12.424828
+  at 0.00876, runs/accuracy/graded.md), so a sequence may pass from one to
+  the other without upsetting the bar. Where that grid would exceed
   `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the
   previous result's nodes relocated by CVT (`grid.adapt`'s density
   1 + f |grad phi_h| with a `band` of 2 eps: f 10, then 100, then 2, 4, ...
@@ -102,12 +103,18 @@ BAND = 2.0               # the CVT band in units of the step's eps (runs/atlas/n
 # adapted stomatocyte 0.4; with 0.8 its eps 0.01 step on a graded grid came out 0.86% high in E
 # with nu_V -2.03 against the sharp -3.71 (0.4: +0.088%, -3.76; uniform grid: +0.057%).
 ADAPT_GAMMA = 0.4
-# eps0 <= FRACTION x the smallest feature of the sharp start, and after an under-resolved step
-# eps <= FRACTION x that of the last usable level set. Measured on 2 ranks: the stomatocyte at
-# v 0.6 (R 0.4) has a sharp neck of width 2 r = 0.0991 (its membranes' gap 0.138); its phi_h = 0
-# was one sphere at eps 0.0141 and 0.01 (0.142 and 0.101 of the neck) and pinched ("2 spheres",
-# "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and more). 1/8 puts eps0 at 0.0124, 12%
-# under the largest eps that resolved, 38% under the one that pinched.
+# eps0 <= FIRST_FRACTION x the smallest feature of the sharp start, and after an under-resolved
+# step eps <= FRACTION x that of the last usable level set (else of the sharp start). Measured on
+# 2 ranks: the stomatocyte at v 0.6 (R 0.4) has a sharp neck of width 2 r = 0.0991 (its
+# membranes' gap 0.138); its phi_h = 0 was one sphere at eps 0.0141 and 0.01 (0.142 and 0.101 of
+# the neck) and pinched ("2 spheres", "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and
+# more). 1/8 puts eps at 0.0124, 12% under the largest eps that resolved, 38% under the one that
+# pinched. At c0 -0.5 (neck 0.0252) phi_h = 0 stayed one sphere at eps 0.0063 (1/4 of it), and
+# a solve at 1/8 from the sharp start did not converge (stage 1 crawled 50 Newton steps, on a
+# graded grid of 35,894 nodes: runs/accuracy/graded.md) where the steps 0.0063, 0.00445 from
+# one another did (level set +0.32%, +0.022%). So the first step tries 1/4, cheaper by 4 to 16
+# in nodes; where it pinches (c0 0: one step of about 2,400 nodes more) 1/8 follows.
+FIRST_FRACTION = 0.25
 FRACTION = 0.125
 # Graded grids. The band of spacing eps / H_RATIO reaches GRADED_WIDTH eps from the membrane,
 # where the profile's 1 + phi = 2 exp(-sqrt2 d / eps) is down to 2e-5; beyond, the spacing
@@ -138,7 +145,6 @@ class Step:
     note: str
     feature: float = math.nan  # the smallest feature of its phi_h = 0 (NaN: not measured)
     feature_kind: str = ''
-    grid: str = ''  # how its grid was made (`_plan`)
 
 
 def uniform_nodes(box, eps):
@@ -158,7 +164,7 @@ def sharp_feature(scene):
     return smallest_feature((np.asarray(shape.r), np.asarray(shape.z)))
 
 
-def first_eps(scene, eps0=None, fraction=FRACTION):
+def first_eps(scene, eps0=None, fraction=FIRST_FRACTION):
     """(eps0, feature): the first step's eps, min(eps0, fraction x the smallest feature
     of the scene's sharp start), eps0 by default R / 10, and that feature (None where
     the family has no sharp start: eps0 as given). Not collective; no solve."""
@@ -223,7 +229,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     restart and budget work). Collective.
 
     `scene.box` may be 'auto' (sized for each eps). `eps0` defaults to R / 10,
-    and is lowered to FRACTION x the smallest feature of the sharp start where
+    and is lowered to FIRST_FRACTION x the smallest feature of the sharp start where
     the family has one (`first_eps`);
     `max_nodes` bounds every grid, `max_time` (s) this call; `checkpoints` a
     directory for the steps' results (step<k>.h5), which a later call resumes
@@ -268,7 +274,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         steps, prev = _resume(checkpoints, scene, mpi, say)
     say(f"tol: {scene.branch} v={scene.reduced_volume:g} c0={scene.c0:g} R={scene.radius:g}: "
         f"TOL {tol:g}, eps from {next_eps(steps, ratio, eps0, sharp)[0]:.4g}"
-        + (f" ({FRACTION:g} x the sharp start's {sharp.kind} {sharp.size:.3g}, under "
+        + (f" ({FIRST_FRACTION:g} x the sharp start's {sharp.kind} {sharp.size:.3g}, under "
            f"{given:g})" if not steps and eps0 < given else '')
         + f" by {ratio:.4g}, budget {max_nodes} nodes, {max_time:g} s"
         + (f", steps in {checkpoints}" if checkpoints else ''))
@@ -294,8 +300,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             break
         t_step = time.perf_counter()
         plan = _plan(scene, eps, prev if prev is not None and steps[-1].usable else None,
-                     steps[-1] if steps else None, adapt, band, params, max_nodes, comm,
-                     graded=steps[0].grid.startswith('graded') if steps else None)
+                     steps[-1] if steps else None, adapt, band, params, max_nodes, comm)
         if isinstance(plan, str):
             if not steps:
                 raise UsageError(f"-pf_tol_nodes {max_nodes}: the first step (eps {eps:g}) "
@@ -333,7 +338,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
              steps[-1].adapt if how == 'previous grid' else 0.0)
         steps.append(Step(eps, grid.n_nodes, resolves, estimate if usable else math.nan,
                           usable, res.converged, wall, f, note,
-                          *(feature if feature else (math.nan, '')), how))
+                          *(feature if feature else (math.nan, ''))))
         value, bar = error_bar(steps)
         res.attrs.update(wall_time=wall, tol_step=k, tol_usable=int(usable), tol_note=note,
                          tol_adapt=f, tol_resolves=resolves,
@@ -397,12 +402,11 @@ def _step_path(directory, k):
     return os.path.join(directory, f"step{k}.h5")
 
 
-def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm, graded=None):
+def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
     """(scene on the grid's box, grid, start, how, resolves) for a step at `eps` after
     the usable result `prev` (None: a fresh start), `resolves` the smallest eps the grid
     resolves; or a string (the node count needed) when every grid that resolves eps
-    exceeds `max_nodes`. `graded`: whether the sequence's grids are graded (`graded_grid`;
-    None: the first step's, which decides)."""
+    exceeds `max_nodes`."""
     half = 2 if scene.symmetric else 1
     sized = scene.sized(eps)
     count = uniform_nodes(sized.box, eps)
@@ -418,9 +422,8 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm, graded=N
             if found is not None:
                 return (on_box, *found, found[0].eps_min)
     start = _moved(prev, sized) if prev is not None else None
-    if adapt == 'auto' and graded is not False:
-        found = graded_grid(sized, eps, start, count // half if graded is None else math.inf,
-                            max_nodes, params, comm)
+    if adapt == 'auto':
+        found = graded_grid(sized, eps, start, count // half, max_nodes, params, comm)
         if found is not None:
             return (sized, *found)
     if count // half > max_nodes:
@@ -575,7 +578,7 @@ def _resume(directory, scene, mpi, say):
                           bool(a['converged']), float(a['wall_time']),
                           float(a.get('tol_adapt', 0.0)), str(a.get('tol_note', '')),
                           float(a.get('tol_feature', math.nan)),
-                          str(a.get('tol_feature_kind', '')), str(a.get('tol_grid', ''))))
+                          str(a.get('tol_feature_kind', ''))))
         last = res
     if steps:
         say(f"tol: resuming after step {len(steps) - 1} found in {directory}")
