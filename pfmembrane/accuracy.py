@@ -440,16 +440,18 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
 
 def graded_grid(scene, eps, start=None, uniform=math.inf, max_nodes=MAX_NODES, params=None,
                 comm=None):
-    """(grid, start, how, resolves): a grid of `scene` (a sized box) graded about the membrane (`kernels.grading`:
-    spacing eps / H_RATIO within GRADED_WIDTH eps of it, growing by GRADING per unit
-    distance up to the first step's uniform spacing) where it has GRADED_GAIN times fewer
-    nodes than the `uniform` grid; the membrane is phi_h = 0 of `start` (in the scene's
-    box), else the scene's sharp start (`sharp_shape`); None where there is neither, the
-    gain is smaller, the grid exceeds `max_nodes` or does not resolve eps."""
+    """(grid, start, how, resolves): a grid of `scene` (its box sized) graded about the
+    membrane (`kernels.grading`: spacing eps / H_RATIO within GRADED_WIDTH eps of it,
+    growing by GRADING per unit distance up to R / 10) where it has GRADED_GAIN times
+    fewer nodes than the `uniform` grid's count; the membrane is phi_h = 0 of `start` (in
+    the scene's box), else the scene's sharp start (`starts.sharp_shape`); None where
+    there is neither, the gain is smaller, the grid exceeds `max_nodes` or does not
+    resolve eps. Collective."""
     from pfmembrane.analysis.levelset import membrane
     from pfmembrane.kernels import grading
     if start is not None:
-        curves, of = membrane(start), f"step {start.attrs.get('tol_step', '?')}'s phi_h = 0"
+        curves = membrane(start.unfolded())  # the level set is found on the full box
+        of = f"step {start.attrs.get('tol_step', '?')}'s phi_h = 0"
     else:
         shape = _sharp_shape(scene)
         curves = [] if shape is None else [
