@@ -3,7 +3,9 @@ c0 = -0.5 and -1 (v 0.6), the pear at c0 2.5 (v 0.73) and the dumbbell (prolate)
 v 0.7, on NP ranks; written to runs/accuracy/narrow.md, rewritten after every run.
 
     python runs/accuracy/narrow.py [--np 2] [--tol 1e-3] [--budget 240] [--until HH:MM]
-        [--out runs/accuracy]
+        [--out runs/accuracy] [--only NAME] [--page narrow.md]
+
+--only runs the cases whose name contains NAME, --page names the page (under --out).
 
 c0 = 2 C0 R is the reduced spontaneous curvature; `-pf_c0` takes C0 (R 0.4: C0 = c0 / 0.8).
 Every run is the command line in a child process (wall time the child's, start-up included;
@@ -77,6 +79,8 @@ def main(argv=None):
     ap.add_argument('--grace', type=float, default=60.0,
                     help='seconds past its budget after which a run is stopped')
     ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'accuracy'))
+    ap.add_argument('--only', default=None, help='the cases whose name contains this')
+    ap.add_argument('--page', default='narrow.md', help='the page written under --out')
     args = ap.parse_args(argv)
     record = report.provenance()
     out = os.path.abspath(args.out)
@@ -101,10 +105,12 @@ def main(argv=None):
                   'The "under-resolved" and "TOL" lines of each run\'s stdout (and a failure\'s '
                   'last stderr line).', '']
         lines += printed
-        with open(os.path.join(out, 'narrow.md'), 'w') as f:
+        with open(os.path.join(out, args.page), 'w') as f:
             f.write('\n'.join(lines) + '\n')
 
     for name, stem, base, branch, v, c0, family in CASES:
+        if args.only and args.only not in name:
+            continue
         C0 = c0 / (2 * R)
         scene = [*base, '-pf_branch', branch, '-pf_reduced_volume', f"{v:g}", '-pf_c0', f"{C0:g}"]
         shown = ' '.join(scene[2:])
