@@ -28,7 +28,7 @@ the adaptive sequences of options/adapt/ do by hand:
   growing by 0.3 per unit distance beyond) has half the nodes or fewer, that
   grid. Its count grows like 1 / eps, the uniform one's like 1 / eps^2: narrow
   necks become affordable. Both kinds give the same level set (the stomatocyte
-  at v 0.6: 12.425533 and 12.425532 at eps 0.0124, 12.424835 and 12.424828
+  at v 0.6: 12.424979 and 12.424971 at eps 0.0124, 12.424446 and 12.424427
   at 0.00876, runs/accuracy/graded.md), so a sequence may pass from one to
   the other without upsetting the bar. Where that grid would exceed
   `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the

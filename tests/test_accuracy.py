@@ -231,6 +231,6 @@ def test_a_narrow_neck_gets_a_graded_grid_that_resolves_it(comm):
     assert resolves == grid.eps_min <= 0.0085
     res = pf.solve(stomatocyte, grid, 0.0085, checks=True)
     assert res.converged and res.topology == '1 sphere'
-    # the level set within 1e-4 of the sharp 12.424253 (runs/accuracy/graded.md: +0.0047% at
+    # the level set within 1e-4 of the sharp 12.424253 (runs/accuracy/graded.md: +0.0015% at
     # eps 0.00876 on both kinds of grid)
     assert res.level_set_energy == pytest.approx(12.424253, rel=1e-4)
