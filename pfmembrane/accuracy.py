@@ -45,9 +45,12 @@ the adaptive sequences of options/adapt/ do by hand:
   the `torus` branch; `expect`). A step whose level set is another (a
   stomatocyte's neck pinched, say) is under-resolved: it is no estimate, the
   driver says "under-resolved: topology X at eps Y (smallest feature: neck
-  0.0991)" and goes on at the next eps (above) from the scene's start on a
-  uniform grid. A solve that does not converge
-  is no estimate either; after two in a row the driver stops;
+  0.0991)" and goes on at the next eps (above) from the scene's start. A
+  feature that keeps closing as eps falls (over the last three estimates, at
+  least like eps^0.5: `closing`) is no under-resolution but a limit shape, a
+  sharp limit with a feature of zero width: the driver says "a LIMIT SHAPE"
+  (attributes `tol_closing`, the slope, and `tol_closing_kind`). A solve that
+  does not converge is no estimate either; after two in a row the driver stops;
 - **error bar**: from the last two estimates E_a, E_b at eps_a > eps_b (never
   from one), r = eps_b / eps_a: bar = max(1, r / (1 - r)) |E_b - E_a|. If the
   error of the estimate is e(eps) = C eps^p with p >= 1, then E_a - E_b =
@@ -126,6 +129,13 @@ FRACTION = 0.125
 GRADED_WIDTH = 8.0
 GRADING = 0.3
 GRADED_GAIN = 2.0  # a graded grid replaces the uniform one with this many times fewer nodes
+# A limit shape: the smallest feature of the last CLOSING_STEPS usable steps falls at least like
+# eps^CLOSING_SLOPE. Measured on 2 ranks (runs/accuracy/narrow.md): the narrow-neck dumbbell at
+# c0 2.5, v 0.7 (the sharp shape's neck closed) has necks 0.128, 0.101, 0.0851 at eps 0.02,
+# 0.0141, 0.01 (slope 0.59), the stomatocyte at v 0.6 (an open neck of 0.099) 0.0973, 0.0954 at
+# eps 0.0124, 0.00876 (0.06).
+CLOSING_STEPS = 3
+CLOSING_SLOPE = 0.5
 MAX_FAILED = 2           # unconverged solves in a row that end the sequence
 EXPECTED = {'torus': '1 torus'}  # phi_h = 0 of each family; the others '1 sphere'
 SCENE_KEYS = ('reduced_volume', 'c0', 'radius', 'k', 'branch', 'symmetric')
@@ -214,6 +224,20 @@ def error_bar(steps):
     return b.estimate, factor * abs(b.estimate - a.estimate)
 
 
+def closing(steps, count=CLOSING_STEPS, slope=CLOSING_SLOPE):
+    """(p, kind, eps) where the smallest feature of the last `count` usable steps has one
+    kind and falls with eps at least like eps^slope (p the least-squares slope of log
+    feature against log eps, eps theirs): a feature still closing as eps falls, whose
+    sharp limit is a feature of zero width (a limit shape); else None."""
+    usable = [s for s in steps if s.usable and math.isfinite(s.feature) and s.feature > 0]
+    last = usable[-count:]
+    if len(last) < count or len({s.feature_kind for s in last}) != 1:
+        return None
+    eps = [s.eps for s in last]
+    p = float(np.polyfit(np.log(eps), np.log([s.feature for s in last]), 1)[0])
+    return (p, last[-1].feature_kind, eps) if p >= slope else None
+
+
 def reached(steps, tol):
     estimate, bar = error_bar(steps)
     return bool(math.isfinite(bar) and bar <= tol * abs(estimate))
@@ -245,7 +269,8 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     bar, absolute, energy units; NaN with fewer than two estimates),
     `tol_reached` (1/0), `tol`, `tol_stop` (why it stopped), per step
     `tol_eps`, `tol_nodes`, `tol_estimates` (NaN: no estimate), `tol_features`
-    (the smallest feature of each step's phi_h = 0; NaN: unusable), and
+    (the smallest feature of each step's phi_h = 0; NaN: unusable), `tol_closing`
+    and `tol_closing_kind` (`closing`: NaN and '' unless a limit shape),
     `tol_wall_time` (this call, s) and `tol_steps_time` (the steps' walls,
     earlier calls' included); the same in the checkpoint it saves to. Every
     step's result and checkpoint holds `tol_feature` and `tol_feature_kind`.
@@ -374,6 +399,9 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         tol_estimates=np.array([s.estimate for s in steps]),
         tol_features=np.array([s.feature for s in steps]),
         tol_wall_time=wall, tol_steps_time=float(sum(s.wall for s in steps)))
+    limit = closing(steps)
+    final.attrs.update(tol_closing=limit[0] if limit else math.nan,
+                       tol_closing_kind=limit[1] if limit else '')
     final.unused_options = sorted(unused or ())
     relative = bar / abs(value) if math.isfinite(bar) and value else math.nan
     say(f"tol: sharp-limit estimate {value:.6f} "
@@ -381,6 +409,11 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
            f"without an error bar ({'one estimate' if math.isfinite(value) else 'none'}, "
            f"TOL {tol:g})")
         + ": " + ("TOL reached" if done else f"TOL not reached ({stop})"))
+    if limit:
+        slope, kind, eps = limit
+        say(f"tol: a LIMIT SHAPE: the {kind} closes as eps falls (like eps^{slope:.2f} over eps "
+            f"{' '.join(format(e, '.4g') for e in eps)}): its sharp limit is a {kind} of zero "
+            "width, which no eps resolves; the estimate converges as slowly")
     say(f"tol: eps {' '.join(format(s.eps, '.4g') for s in steps)}; nodes "
         f"{' '.join(str(s.nodes) for s in steps)}; {wall:.1f} s "
         f"(steps {sum(s.wall for s in steps):.1f} s)")

@@ -234,3 +234,23 @@ def test_a_narrow_neck_gets_a_graded_grid_that_resolves_it(comm):
     # the level set within 1e-4 of the sharp 12.424253 (runs/accuracy/graded.md: +0.0015% at
     # eps 0.00876 on both kinds of grid)
     assert res.level_set_energy == pytest.approx(12.424253, rel=1e-4)
+
+
+def test_a_feature_closing_as_eps_falls_is_a_limit_shape():
+    def usable(eps, feature, kind='neck'):
+        return accuracy.Step(eps, 1000, 0.9 * eps, 1.0, True, True, 1.0, 0.0, '', feature, kind)
+    # the narrow-neck dumbbell at c0 2.5, v 0.7 (runs/accuracy/narrow.md): slope 0.59
+    dumbbell = [usable(e, f) for e, f in ((0.04, 0.221), (0.0283, 0.166), (0.02, 0.128),
+                                          (0.0141, 0.101), (0.01, 0.0851))]
+    slope, kind, eps = accuracy.closing(dumbbell)
+    assert kind == 'neck' and eps == [0.02, 0.0141, 0.01]
+    assert slope == pytest.approx(math.log(0.128 / 0.0851) / math.log(2.0), rel=2e-2)
+    # an open neck (the stomatocyte at v 0.6), too few estimates, two kinds: none
+    assert accuracy.closing([usable(0.0248, 0.0991), usable(0.0124, 0.0973),
+                             usable(0.00876, 0.0954)]) is None
+    assert accuracy.closing(dumbbell[-2:]) is None
+    assert accuracy.closing(dumbbell[:-1] + [usable(0.01, 0.0851, 'gap')]) is None
+    # an unusable step in between is skipped
+    pinched = accuracy.Step(0.012, 1000, 0.01, math.nan, False, True, 1.0, 0.0,
+                            'under-resolved: topology 2 spheres at eps 0.012')
+    assert accuracy.closing(dumbbell[:-1] + [pinched, dumbbell[-1]])[2] == [0.02, 0.0141, 0.01]
