@@ -102,7 +102,7 @@ def main(argv=None):
                                'bar / E', 'sharp', 'error vs sharp', 'topology', 'features',
                                'eps', 'nodes', 'stop'], rows)
         lines += ['', '## What the runs printed', '',
-                  'The "under-resolved" and "TOL" lines of each run\'s stdout (and a failure\'s '
+                  'The "under-resolved", "LIMIT SHAPE" and "TOL" lines of each run\'s stdout (and a failure\'s '
                   'last stderr line).', '']
         lines += printed
         with open(os.path.join(out, args.page), 'w') as f:
@@ -127,7 +127,7 @@ def main(argv=None):
             args.np, [*scene, '-pf_box', 'auto', '-pf_tol', f"{args.tol:g}",
                       '-pf_tol_time', f"{budget:.0f}"], output, budget + args.grace)
         said = [clean(t) for t in stdout.splitlines()
-                if 'under-resolved' in t or 'TOL' in t]
+                if 'under-resolved' in t or 'TOL' in t or 'LIMIT SHAPE' in t]
         printed += [f"**{name}** (status {code}{', killed' if killed else ''}):", '']
         printed += [f"- `{t}`" for t in said] or ['- (no under-resolved or TOL line)']
         if killed:
