@@ -102,7 +102,8 @@ def main(argv=None):
                                'bar / E', 'sharp', 'error vs sharp', 'topology', 'features',
                                'eps', 'nodes', 'stop'], rows)
         lines += ['', '## What the runs printed', '',
-                  'The "under-resolved", "LIMIT SHAPE" and "TOL" lines of each run\'s stdout (and a failure\'s '
+                  'The "under-resolved", "LIMIT SHAPE" and "TOL" lines of each run\'s stdout '
+                  '(and a failure\'s '
                   'last stderr line).', '']
         lines += printed
         with open(os.path.join(out, args.page), 'w') as f:
