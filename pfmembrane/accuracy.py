@@ -22,15 +22,18 @@ the adaptive sequences of options/adapt/ do by hand:
   1.5 times the median spacing, `_lattice_resolves`): the previous grid when
   it resolves eps, else a uniform grid of the box sized for eps (`Scene.sized`;
   a fixed box stays) with spacing h = eps / 1.75 on the hexagonal lattice, about
-  Rb Zb / (sqrt3/2 h^2) nodes of the full box; or, where the membrane is known
-  (the previous usable step's phi_h = 0, else the sharp start) and a grid
-  graded about it (`graded_grid`: that spacing within 8 eps of the membrane,
-  growing by 0.3 per unit distance beyond) has half the nodes or fewer, that
-  grid. Its count grows like 1 / eps, the uniform one's like 1 / eps^2: narrow
-  necks become affordable. Both kinds give the same level set (the stomatocyte
-  at v 0.6: 12.424979 and 12.424971 at eps 0.0124, 12.424446 and 12.424427
-  at 0.00876, runs/accuracy/graded.md), so a sequence may pass from one to
-  the other without upsetting the bar. Where that grid would exceed
+  Rb Zb / (sqrt3/2 h^2) nodes of the full box. Where that grid would exceed
+  `max_nodes` and the membrane is known (the previous usable step's phi_h = 0,
+  else the sharp start), a grid graded about it (`graded_grid`: that spacing
+  within 8 eps of the membrane, growing by 0.3 per unit distance beyond),
+  whose count grows like 1 / eps where the uniform one's grows like 1 / eps^2.
+  Only there: on the stomatocyte at v 0.6 both kinds give the same level set
+  (12.424979 and 12.424971 at eps 0.0124, 12.424446 and 12.424427 at 0.00876,
+  runs/accuracy/graded.md), but at c0 -0.5 the graded grid's E at eps 0.0063
+  was 1.1% above the uniform one's and its solves at 0.00446 (from the step
+  before) and 0.00315 did not converge where the uniform grid's at 0.00446
+  did (runs/accuracy/narrow_stomatocyte_m0.5.md). Where the graded grid
+  would exceed
   `max_nodes` (`adapt='auto'`, the default), or first (`adapt=True`), the
   previous result's nodes relocated by CVT (`grid.adapt`'s density
   1 + f |grad phi_h| with a `band` of 2 eps: f 10, then 100, then 2, 4, ...
@@ -128,7 +131,6 @@ FRACTION = 0.125
 # 0.6 saved 4% of the nodes and lost accuracy (12.43682).
 GRADED_WIDTH = 8.0
 GRADING = 0.3
-GRADED_GAIN = 2.0  # a graded grid replaces the uniform one with this many times fewer nodes
 # A limit shape: the smallest feature of the last CLOSING_STEPS usable steps falls at least like
 # eps^CLOSING_SLOPE. Measured on 2 ranks (runs/accuracy/narrow.md): the narrow-neck dumbbell at
 # c0 2.5, v 0.7 (the sharp shape's neck closed) has necks 0.128, 0.101, 0.0851 at eps 0.02,
@@ -443,23 +445,24 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
     half = 2 if scene.symmetric else 1
     sized = scene.sized(eps)
     count = uniform_nodes(sized.box, eps)
+    over = count // half > max_nodes
     if prev is not None:
         on_box = replace(scene, box=tuple(float(b) for b in prev.attrs['box']))
         if last.eps_min <= eps:   # the previous grid resolves eps: the same basis
             grid = prev.grid if prev.grid is not None and prev.grid.fits(on_box) else \
                 Grid.of(prev, comm=comm, **{k: v for k, v in params.items() if k == 'partition'})
             return on_box, grid, prev, 'previous grid', last.eps_min
-        if adapt is True or (adapt == 'auto' and count // half > max_nodes):
-            ceiling = max_nodes if adapt == 'auto' else min(max_nodes, count // half - 1)
-            found = _adapted(on_box, prev, last.adapt, eps, band, ceiling, params, comm)
-            if found is not None:
-                return (on_box, *found, found[0].eps_min)
     start = _moved(prev, sized) if prev is not None else None
-    if adapt == 'auto':
-        found = graded_grid(sized, eps, start, count // half, max_nodes, params, comm)
+    if over and adapt == 'auto':
+        found = graded_grid(sized, eps, start, max_nodes=max_nodes, params=params, comm=comm)
         if found is not None:
             return (sized, *found)
-    if count // half > max_nodes:
+    if prev is not None and (adapt is True or (adapt == 'auto' and over)):
+        ceiling = max_nodes if adapt == 'auto' else min(max_nodes, count // half - 1)
+        found = _adapted(on_box, prev, last.adapt, eps, band, ceiling, params, comm)
+        if found is not None:
+            return (on_box, *found, found[0].eps_min)
+    if over:
         return f"{count // half} nodes"
     grid = Grid.uniform(sized, count, comm=comm, **params)
     if _lattice_resolves(grid) > eps:  # the lattice rounded coarse: once more, finer
@@ -471,15 +474,13 @@ def _plan(scene, eps, prev, last, adapt, band, params, max_nodes, comm):
             _lattice_resolves(grid))
 
 
-def graded_grid(scene, eps, start=None, uniform=math.inf, max_nodes=MAX_NODES, params=None,
-                comm=None):
+def graded_grid(scene, eps, start=None, max_nodes=MAX_NODES, params=None, comm=None):
     """(grid, start, how, resolves): a grid of `scene` (its box sized) graded about the
     membrane (`kernels.grading`: spacing eps / H_RATIO within GRADED_WIDTH eps of it,
-    growing by GRADING per unit distance up to R / 10) where it has GRADED_GAIN times
-    fewer nodes than the `uniform` grid's count; the membrane is phi_h = 0 of `start` (in
-    the scene's box), else the scene's sharp start (`starts.sharp_shape`); None where
-    there is neither, the gain is smaller, the grid exceeds `max_nodes` or does not
-    resolve eps. Collective."""
+    growing by GRADING per unit distance up to R / 10); the membrane is phi_h = 0 of
+    `start` (in the scene's box), else the scene's sharp start (`starts.sharp_shape`);
+    None where there is neither, or the grid exceeds `max_nodes` or does not resolve
+    eps. Collective."""
     from pfmembrane.analysis.levelset import membrane
     from pfmembrane.kernels import grading
     if start is not None:
@@ -496,7 +497,7 @@ def graded_grid(scene, eps, start=None, uniform=math.inf, max_nodes=MAX_NODES, p
     for _ in range(2):
         shape_args = (curves, scene.box, h0, GRADED_WIDTH * eps, GRADING, h_max, scene.plane)
         count = grading.graded_count(*shape_args)
-        if count > max_nodes or GRADED_GAIN * count > uniform:
+        if count > max_nodes:
             return None
         nodes, _, _ = grading.graded_nodes(*shape_args)
         grid = Grid(scene, nodes, comm=comm, **(params or {}))

@@ -199,26 +199,25 @@ def test_an_under_resolved_step_jumps_to_the_feature():
     assert accuracy.next_eps([], 0.5, 0.04, sharp) == (0.04, None)
 
 
-def test_a_graded_grid_where_it_halves_the_nodes(monkeypatch):
+def test_a_graded_grid_only_where_the_uniform_one_exceeds_the_node_budget(monkeypatch):
     asked = []
 
-    def graded(scene, eps, start, uniform, max_nodes, params, comm):
-        asked.append(uniform)
-        return ('grid', start, 'graded about the sharp start', 0.9 * eps) if len(asked) == 1 \
-            else None
+    def graded(scene, eps, start=None, max_nodes=None, params=None, comm=None):
+        asked.append(max_nodes)
+        return 'grid', start, 'graded about the sharp start', 0.9 * eps
 
     monkeypatch.setattr(accuracy, 'graded_grid', graded)
-    scene = pf.Scene(box='auto')
-    count = accuracy.uniform_nodes(scene.sized(0.04).box, 0.04)
-    plan = accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, 10 ** 6, None)
-    assert plan[1:] == ('grid', None, 'graded about the sharp start', 0.9 * 0.04)
-    assert asked == [count]           # offered the uniform grid's count to halve
     monkeypatch.setattr(accuracy.Grid, 'uniform', classmethod(lambda *a, **k: 'uniform'))
     monkeypatch.setattr(accuracy, '_lattice_resolves', lambda grid: 0.03)
-    plan = accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, 10 ** 6, None)
-    assert plan[1] == 'uniform' and plan[4] == 0.03  # none found: the uniform grid
-    accuracy._plan(scene, 0.04, None, None, False, 2.0, {}, 10 ** 6, None)
-    assert len(asked) == 2            # adapt=False: never graded
+    scene = pf.Scene(box='auto')
+    count = accuracy.uniform_nodes(scene.sized(0.04).box, 0.04)
+    plan = accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, count, None)
+    assert plan[1] == 'uniform' and plan[4] == 0.03 and asked == []  # within the budget
+    plan = accuracy._plan(scene, 0.04, None, None, 'auto', 2.0, {}, count - 100, None)
+    assert plan[1:] == ('grid', None, 'graded about the sharp start', 0.9 * 0.04)
+    assert asked == [count - 100]
+    assert accuracy._plan(scene, 0.04, None, None, False, 2.0, {}, count - 100, None) == \
+        f"{count} nodes" and len(asked) == 1  # adapt=False: never graded
 
 
 @pytest.mark.slow  # one solve of 11,000 nodes on one rank: about 40 s
