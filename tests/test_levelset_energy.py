@@ -220,7 +220,7 @@ def test_a_narrow_neck_s_energy_takes_the_modes_it_needs(c0, tol):
     """The sharp stomatocyte at v 0.6 (R 0.4; c0 = 2 C0 R = 0 and -0.5, a neck 0.099 and
     0.025 wide) through `level_set_energy` with its own normals: its energy back. With the
     fixed 48 sine modes of before, +0.003% and +2.2% (measured on the same 2,000 points:
-    +0.0031%, +2.19%); with the modes doubled until they agree, +0.0006%, +0.007%."""
+    +0.0031%, +2.19%); with the modes doubled until they agree, +0.00003%, +0.00005%."""
     from pfmembrane.sharp import solver as sharp
     with warnings.catch_warnings():  # its sine spectrum at c0 -0.5: 1e-4 at n = 256
         warnings.simplefilter('ignore', RuntimeWarning)
