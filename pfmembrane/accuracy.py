@@ -116,19 +116,17 @@ ADAPT_GAMMA = 0.4
 # the neck) and pinched ("2 spheres", "1 torus") at 0.02, 0.028, 0.04 (0.20 of the neck and
 # more). 1/8 puts eps at 0.0124, 12% under the largest eps that resolved, 38% under the one that
 # pinched. At c0 -0.5 (neck 0.0252) phi_h = 0 stayed one sphere at eps 0.0063 (1/4 of it), and
-# a solve at 1/8 from the sharp start did not converge (stage 1 crawled 50 Newton steps, on a
-# graded grid of 35,894 nodes: runs/accuracy/graded.md) where the steps 0.0063, 0.00445 from
-# one another did (level set +0.32%, +0.022%). So the first step tries 1/4, cheaper by 4 to 16
+# a solve at 1/8 from the sharp start did not converge (on a graded grid of 35,894 nodes:
+# runs/accuracy/graded.md) where the steps 0.0063, 0.00446 from one another did (estimate
+# +0.0226%: runs/accuracy/narrow_stomatocyte_m0.5_uniform.md). So the first step tries 1/4, cheaper by 4 to 16
 # in nodes; where it pinches (c0 0: one step of about 2,400 nodes more) 1/8 follows.
 FIRST_FRACTION = 0.25
 FRACTION = 0.125
 # Graded grids. The band of spacing eps / H_RATIO reaches GRADED_WIDTH eps from the membrane,
 # where the profile's 1 + phi = 2 exp(-sqrt2 d / eps) is down to 2e-5; beyond, the spacing
-# grows by GRADING per unit distance (`graded_grid`). Measured on 2 ranks, the stomatocyte at
-# v 0.6, eps 0.00876: with 4 eps (1 + phi 7e-3 where the spacing starts to grow) E came out
-# 1.2% above the uniform grid's (12.58205 against 12.42949), with 6 eps the solve did not
-# converge, with 8 eps 0.03% above (12.43355) on 11,768 nodes against 15,824; a grading of
-# 0.6 saved 4% of the nodes and lost accuracy (12.43682).
+# grows by GRADING per unit distance (`graded_grid`). With them, the stomatocyte at v 0.6 has the
+# uniform grid's level set (runs/accuracy/graded.md); a band of 4 eps, where 1 + phi is still
+# 7e-3, left its phase-field E 1.2% high at eps 0.00876 (not on a page: measured while choosing).
 GRADED_WIDTH = 8.0
 GRADING = 0.3
 # A limit shape: the smallest feature of the last CLOSING_STEPS usable steps falls at least like
@@ -483,6 +481,7 @@ def graded_grid(scene, eps, start=None, max_nodes=MAX_NODES, params=None, comm=N
     eps. Collective."""
     from pfmembrane.analysis.levelset import membrane
     from pfmembrane.kernels import grading
+    from pfmembrane.kernels.nodes import nodal_spacing, spacing_peak
     if start is not None:
         curves = membrane(start.unfolded())  # the level set is found on the full box
         of = f"step {start.attrs.get('tol_step', '?')}'s phi_h = 0"
@@ -495,16 +494,21 @@ def graded_grid(scene, eps, start=None, max_nodes=MAX_NODES, params=None, comm=N
         return None
     h0, h_max = eps / H_RATIO, FIRST_EPS * scene.radius
     for _ in range(2):
-        shape_args = (curves, scene.box, h0, GRADED_WIDTH * eps, GRADING, h_max, scene.plane)
-        count = grading.graded_count(*shape_args)
-        if count > max_nodes:
+        raster = grading.spacing_raster(curves, scene.box, h0, GRADED_WIDTH * eps, GRADING,
+                                        h_max, scene.plane)
+        if grading.node_count(*raster) > max_nodes:
             return None
-        nodes, _, _ = grading.graded_nodes(*shape_args)
-        grid = Grid(scene, nodes, comm=comm, **(params or {}))
-        if grid.eps_min <= eps:
-            return grid, start, (f"graded about {of}: h {h0:.3g} within "
-                                 f"{GRADED_WIDTH * eps:.3g}, grading {GRADING:g}"), grid.eps_min
-        h0 *= eps / grid.eps_min / 1.02  # the CVT came out coarse: once more, finer
+        nodes, _, _ = grading.graded_nodes(*raster, scene.box, scene.plane)
+        # the grid's eps_min, before its basis is built
+        resolves = RESOLUTION * spacing_peak(nodal_spacing(nodes, plane=scene.plane))
+        if resolves <= eps:
+            grid = Grid(scene, nodes, comm=comm, **(params or {}))
+            if grid.eps_min <= eps:
+                return grid, start, (f"graded about {of}: h {h0:.3g} within "
+                                     f"{GRADED_WIDTH * eps:.3g}, grading {GRADING:g}"), \
+                    grid.eps_min
+            resolves = grid.eps_min
+        h0 *= eps / resolves / 1.02  # the CVT came out coarse: once more, finer
     return None
 
 

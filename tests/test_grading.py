@@ -35,18 +35,19 @@ def test_the_count_is_the_integral_of_the_hexagonal_density():
     integral = quad(lambda d: 1.0 / (grading.HEX * grading.spacing(d, H0, WIDTH, GRADE,
                                                                       H_MAX) ** 2),
                     0.0, 0.2, points=[WIDTH, WIDTH + (H_MAX - H0) / GRADE])[0]
-    count = grading.graded_count([LINE], BOX, H0, WIDTH, GRADE, H_MAX)
+    count = grading.node_count(*grading.spacing_raster([LINE], BOX, H0, WIDTH, GRADE, H_MAX))
     assert count == pytest.approx(2 * BOX[1] * integral, rel=0.02)
 
 
 @pytest.fixture(scope='module')
 def graded():
-    return grading.graded_nodes([LINE], BOX, H0, WIDTH, GRADE, H_MAX)
+    return grading.graded_nodes(*grading.spacing_raster([LINE], BOX, H0, WIDTH, GRADE, H_MAX),
+                                BOX)
 
 
 def test_the_cvt_places_the_count_with_the_band_s_spacing(graded):
     nodes, steps, movement = graded
-    count = grading.graded_count([LINE], BOX, H0, WIDTH, GRADE, H_MAX)
+    count = grading.node_count(*grading.spacing_raster([LINE], BOX, H0, WIDTH, GRADE, H_MAX))
     assert len(nodes) == pytest.approx(count, rel=0.01) and 0 < steps and movement < 1e-3
     assert (nodes >= 0).all() and (nodes <= BOX).all()
     h = nodal_spacing(nodes)
@@ -60,11 +61,12 @@ def test_the_cvt_places_the_count_with_the_band_s_spacing(graded):
 
 
 def test_a_mirror_plane_grades_the_half_box():
-    nodes, _, _ = grading.graded_nodes([LINE], BOX, H0, WIDTH, GRADE, H_MAX, plane=0.3)
-    full = grading.graded_count([LINE], BOX, H0, WIDTH, GRADE, H_MAX)
+    half_raster = grading.spacing_raster([LINE], BOX, H0, WIDTH, GRADE, H_MAX, plane=0.3)
+    nodes, _, _ = grading.graded_nodes(*half_raster, BOX, plane=0.3)
+    full = grading.node_count(*grading.spacing_raster([LINE], BOX, H0, WIDTH, GRADE, H_MAX))
     assert (nodes[:, 1] >= 0.3 - 1e-12).all()
     # half of the full count, and the half box's own count; the start lattice's row on the
     # plane adds about one row's nodes (797 against 750 here)
-    half = grading.graded_count([LINE], BOX, H0, WIDTH, GRADE, H_MAX, plane=0.3)
+    half = grading.node_count(*half_raster)
     assert half == pytest.approx(0.5 * full, rel=0.01)
     assert half < len(nodes) < 1.08 * half

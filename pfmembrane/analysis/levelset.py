@@ -54,14 +54,9 @@ _NEWTON_STEPS = 20       # projections onto phi_h = 0; 3-5 suffice
 _NEWTON_TOL = 1e-10      # last step, relative to the box size
 _TOPOLOGY_TOL = 1e-3     # an end this close to the axis (or to the other end), box units
 _DENSE = 16              # spline points per polyline segment in `distance`
-# The level set's points and the sine modes of its energy. A narrow neck needs both: on the
-# sharp stomatocyte at v 0.6 (R 0.4) resampled from its own curve, the energy with 48 modes is
-# +0.003% at c0 0, +2.19% at c0 -0.5 (neck 0.025), +4.9% at c0 -1 (neck 0.014); with 192
-# modes +0.0006%, +0.010%, +0.13%; with 256 +0.019% at c0 -1 (2,000 points). 400 points
-# leave +0.012% at c0 0 with any number of modes, 2,000 +0.0006%.
+# The level set's points: its energy's sine modes (`sharp.shape_energy`) take a quarter of them
+# at most, which a narrow neck needs (runs/limit/narrow_necks.md).
 LEVEL_SET_SAMPLES = 2000
-ENERGY_MODES_TOL = 1e-5
-ENERGY_MODES_MAX = 512
 _NEAREST = 8             # vertices whose segments `distance` searches
 
 
@@ -417,10 +412,9 @@ def level_set_energy(ckpt, curve, field=None):
     Returns
     -------
     energy, energy_curve : float
-        As `pfmembrane.sharp.shape_energy`, its sine series doubled from
-        SHAPE_MODES until two energies agree to ENERGY_MODES_TOL (at most
-        ENERGY_MODES_MAX modes, a quarter of the points); NaN unless the level
-        set is one curve from the axis to the axis.
+        As `pfmembrane.sharp.shape_energy` (its sine modes as many as the
+        curve needs); NaN unless the level set is one curve from the axis to
+        the axis.
     """
     attrs = ckpt.attrs
     tolerance = 1e-6 * np.max(np.asarray(attrs["box"], dtype=float))
@@ -436,17 +430,8 @@ def level_set_energy(ckpt, curve, field=None):
     psi -= 2.0 * np.pi * np.round(psi[0] / (2.0 * np.pi))
     s = _arc_length(points)
     area, volume = targets(float(attrs["radius"]), float(attrs["reduced_volume"]))
-    fit = lambda n: sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], area, volume,  # noqa: E731
-                                       float(attrs["c0"]), float(attrs["k"]), n=n)
-    n = sharp.SHAPE_MODES
-    energy = fit(n)
-    while 2 * n <= min(ENERGY_MODES_MAX, len(points) // 4):
-        finer = fit(2 * n)
-        n, converged = 2 * n, abs(finer[0] - energy[0]) <= ENERGY_MODES_TOL * abs(finer[0])
-        energy = finer
-        if converged:
-            break
-    return energy
+    return sharp.shape_energy(np.pi * s / s[-1], psi, s[-1], area, volume,
+                              float(attrs["c0"]), float(attrs["k"]))
 
 
 LOOP_MODES = 48  # Fourier modes of the tangent angle in `loop_energy`

@@ -1,6 +1,6 @@
 """Nodes graded about a curve: spacing h0 within `width` of the membrane's (r, z)
 curve, growing by `grading` per unit distance beyond it up to `h_max`, placed as
-the CVT of the density that spacing asks for (`cvt.lloyd`).
+the CVT of the density that spacing asks for.
 
 A uniform grid that resolves eps everywhere pays for the bulk, where phi is
 +-1, at the interface's spacing: its node count grows like 1 / eps^2, the
@@ -12,23 +12,22 @@ to the curve alone,
 
 flat across the interface (max-ent's Laplacian errs where the spacing changes,
 which the flat band keeps out of it) and growing linearly outside. A CVT's
-node density goes like rho^(1/2) (`cvt`), so rho = (h_max / h)^4 >= 1.
+node density goes like rho^(1/2) (`cvt`), so rho = (h_max / h)^4 >= 1, placed by the CVT of
+node adaptivity (`adapt.cvt_nodes`).
 
 Pure numpy/scipy; every rank builds the same node set deterministically.
 """
 import math
 
 import numpy as np
-from scipy.ndimage import map_coordinates
 from scipy.spatial import cKDTree
 
-from pfmembrane.kernels import cvt
+from pfmembrane.kernels.adapt import cvt_nodes
 from pfmembrane.kernels.nodes import raster_axes, uniform
 
 HEX = math.sqrt(3.0) / 2.0  # area per node of a hexagonal lattice of spacing h, over h^2
 RASTER = 0.5                # raster step / h0
 CURVE_STEP = 0.25           # the curve resampled at this fraction of h0 for its distance
-LLOYD_STEPS = 40            # after the redistribution, polish only: the density is known
 
 
 def spacing(distance, h0, width, grading, h_max):
@@ -51,38 +50,24 @@ def curve_distance(points, curves, step):
     return cKDTree(dense).query(points)[0]
 
 
-def graded_count(curves, box, h0, width, grading, h_max, plane=None):
-    """The node count of `graded_nodes` for these arguments (of the half box
-    z >= plane with a mirror plane), without placing them."""
-    r, z, h = _spacing_raster(curves, box, h0, width, grading, h_max, plane)
-    cell = (r[1] - r[0]) * (z[1] - z[0])
-    return int(math.ceil(np.sum(1.0 / (HEX * h * h)) * cell))
-
-
-def graded_nodes(curves, box, h0, width, grading, h_max, plane=None):
-    """(nodes, Lloyd steps, movement): about `graded_count` nodes of the box (of its
-    half z >= plane) graded about `curves` as the module docstring says, corners and
-    edge nodes included (`cvt.lloyd`)."""
-    r, z, h = _spacing_raster(curves, box, h0, width, grading, h_max, plane)
-    cell = (r[1] - r[0]) * (z[1] - z[0])
-    count = int(math.ceil(np.sum(1.0 / (HEX * h * h)) * cell))
-    rho = (h_max / h) ** 4
-    z0 = z[0]
-    start = uniform(box, count * (2 if plane is not None else 1), half=plane is not None)
-
-    def density(points):
-        coords = [points[:, 1] / (z[1] - z[0]), points[:, 0] / (r[1] - r[0])]
-        return map_coordinates(rho, coords, order=1, mode='nearest')
-
-    shift = np.array([0.0, z0])
-    nodes, steps, movement = cvt.lloyd(start - shift, (box[0], box[1] - z0), density,
-                                       max_iter=LLOYD_STEPS, mirror=plane is not None,
-                                       axis=True)
-    return nodes + shift, steps, movement
-
-
-def _spacing_raster(curves, box, h0, width, grading, h_max, plane):
+def spacing_raster(curves, box, h0, width, grading, h_max, plane=None):
+    """(r, z, h): the raster axes of the box (of its half z >= plane with a mirror plane)
+    at RASTER h0 and h(d) of the module docstring on it (rows z, columns r)."""
     r, z = raster_axes(box, RASTER * h0, plane or 0.0)
     R, Z = np.meshgrid(r, z, indexing='xy')
     d = curve_distance(np.column_stack([R.ravel(), Z.ravel()]), curves, CURVE_STEP * h0)
     return r, z, spacing(d, h0, width, grading, h_max).reshape(len(z), len(r))
+
+
+def node_count(r, z, h):
+    """The nodes a hexagonal lattice of the local spacing h puts on the raster (r, z)."""
+    return int(math.ceil(np.sum(1.0 / (HEX * h * h)) * (r[1] - r[0]) * (z[1] - z[0])))
+
+
+def graded_nodes(r, z, h, box, plane=None):
+    """(nodes, Lloyd steps, movement): `node_count` nodes of the box (of its half z >=
+    plane) with the spacing h of the raster (r, z), corners and edge nodes included: the
+    CVT of rho = (max h / h)^4 (`adapt.cvt_nodes`) from a uniform grid of that count."""
+    start = uniform(box, node_count(r, z, h) * (2 if plane is not None else 1),
+                    half=plane is not None)
+    return cvt_nodes(start, box, (h.max() / h) ** 4 - 1.0, r, z, 1.0, plane)

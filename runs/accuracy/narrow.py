@@ -175,7 +175,7 @@ def main(argv=None):
                      clean(str(a.get('tol_stop', '-')))])
         print(' | '.join(map(str, rows[-1])), flush=True)
         write()
-    print(os.path.join(out, 'narrow.md'))
+    print(os.path.join(out, args.page))
     return 0
 
 
