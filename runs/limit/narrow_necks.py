@@ -15,8 +15,7 @@ import warnings
 import numpy as np
 
 from pfmembrane import report
-from pfmembrane.analysis.levelset import smallest_feature
-from pfmembrane.io.options import targets
+from pfmembrane.analysis.levelset import smallest_feature, targets
 from pfmembrane.sharp import solver as sharp
 
 R, V = 0.4, 0.6
