@@ -56,6 +56,9 @@ def uniform(box, n, half=False):
     nodes = _hex_grid(box, hi if abs(count(hi) - n) <= abs(count(lo) - n) else lo, symmetric=half)
     if half:
         nodes = nodes[nodes[:, 1] >= 0.5 * Zb * (1.0 - 1e-12)]
+        # the row dz * rows / 2 can miss Zb / 2 by an ulp: on the plane exactly, else its
+        # mirror image is a near-duplicate node and the spacing there is undefined
+        nodes[np.abs(nodes[:, 1] - 0.5 * Zb) <= 1e-12 * Zb, 1] = 0.5 * Zb
     return nodes
 
 
