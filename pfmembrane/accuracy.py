@@ -52,7 +52,10 @@ the adaptive sequences of options/adapt/ do by hand:
   feature that keeps closing as eps falls (over the last three estimates, at
   least like eps^0.5: `closing`) is no under-resolution but a limit shape, a
   sharp limit with a feature of zero width: the driver says "a LIMIT SHAPE"
-  (attributes `tol_closing`, the slope, and `tol_closing_kind`). A solve that
+  (attributes `tol_closing`, the slope, and `tol_closing_kind`); one that
+  closes like eps^0.9 or faster follows the interface, an under-resolution
+  the driver stops at ("UNDER-RESOLVED: the gap follows eps"; `tol_follows`,
+  `tol_follows_kind`). A solve that
   does not converge is no estimate either; after two in a row the driver stops;
 - **error bar**: from the last two estimates E_a, E_b at eps_a > eps_b (never
   from one), r = eps_b / eps_a: bar = max(1, r / (1 - r)) |E_b - E_a|. If the
@@ -134,8 +137,13 @@ GRADING = 0.3
 # c0 2.5, v 0.7 (the sharp shape's neck closed) has necks 0.128, 0.101, 0.0851 at eps 0.02,
 # 0.0141, 0.01 (slope 0.59), the stomatocyte at v 0.6 (an open neck of 0.099) 0.0973, 0.0954 at
 # eps 0.0124, 0.00876 (0.06).
+# A feature closing like eps^FOLLOWS_SLOPE or faster follows the interface: it is set by eps,
+# not by the shape, an under-resolution. Measured on 2 ranks (runs/phase_diagram/diagram.md):
+# the oblate at c0 1, v 0.55 (the sharp gap 0.063) keeps its gap near 2 eps (0.0188, 0.0129,
+# 0.00895 at eps 0.01, 0.00707, 0.005: slope 1.07) where the dumbbell's neck closes like eps^0.59.
 CLOSING_STEPS = 3
 CLOSING_SLOPE = 0.5
+FOLLOWS_SLOPE = 0.9
 MAX_FAILED = 2           # unconverged solves in a row that end the sequence
 EXPECTED = {'torus': '1 torus'}  # phi_h = 0 of each family; the others '1 sphere'
 SCENE_KEYS = ('reduced_volume', 'c0', 'radius', 'k', 'branch', 'symmetric')
@@ -238,6 +246,13 @@ def closing(steps, count=CLOSING_STEPS, slope=CLOSING_SLOPE):
     return (p, last[-1].feature_kind, eps) if p >= slope else None
 
 
+def following(steps):
+    """`closing(steps)` where the feature closes like eps^FOLLOWS_SLOPE or faster: held at
+    the interface width, an under-resolution, not a limit shape; else None."""
+    limit = closing(steps)
+    return limit if limit and limit[0] >= FOLLOWS_SLOPE else None
+
+
 def reached(steps, tol):
     estimate, bar = error_bar(steps)
     return bool(math.isfinite(bar) and bar <= tol * abs(estimate))
@@ -271,6 +286,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
     `tol_eps`, `tol_nodes`, `tol_estimates` (NaN: no estimate), `tol_features`
     (the smallest feature of each step's phi_h = 0; NaN: unusable), `tol_closing`
     and `tol_closing_kind` (`closing`: NaN and '' unless a limit shape),
+    `tol_follows` and `tol_follows_kind` (the same for a feature that follows eps),
     `tol_wall_time` (this call, s) and `tol_steps_time` (the steps' walls,
     earlier calls' included); the same in the checkpoint it saves to. Every
     step's result and checkpoint holds `tol_feature` and `tol_feature_kind`.
@@ -315,6 +331,11 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             failed += 1
         if failed >= MAX_FAILED:
             stop = f"{failed} solves in a row did not converge"
+            break
+        held = following(steps)
+        if held:
+            stop = (f"under-resolved: the {held[1]} follows eps (like eps^{held[0]:.2f}, "
+                    f"{steps[-1].feature / steps[-1].eps:.2g} eps at eps {steps[-1].eps:.4g})")
             break
         k = len(steps)
         eps, reference = next_eps(steps, ratio, eps0, sharp)
@@ -400,8 +421,11 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
         tol_features=np.array([s.feature for s in steps]),
         tol_wall_time=wall, tol_steps_time=float(sum(s.wall for s in steps)))
     limit = closing(steps)
-    final.attrs.update(tol_closing=limit[0] if limit else math.nan,
-                       tol_closing_kind=limit[1] if limit else '')
+    follows = following(steps) is not None
+    final.attrs.update(tol_closing=limit[0] if limit and not follows else math.nan,
+                       tol_closing_kind=limit[1] if limit and not follows else '',
+                       tol_follows=limit[0] if follows else math.nan,
+                       tol_follows_kind=limit[1] if follows else '')
     final.unused_options = sorted(unused or ())
     relative = bar / abs(value) if math.isfinite(bar) and value else math.nan
     say(f"tol: sharp-limit estimate {value:.6f} "
@@ -409,7 +433,12 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
            f"without an error bar ({'one estimate' if math.isfinite(value) else 'none'}, "
            f"TOL {tol:g})")
         + ": " + ("TOL reached" if done else f"TOL not reached ({stop})"))
-    if limit:
+    if follows:
+        slope, kind, eps = limit
+        say(f"tol: UNDER-RESOLVED: the {kind} follows eps (like eps^{slope:.2f} over eps "
+            f"{' '.join(format(e, '.4g') for e in eps)}): held at the interface width, not "
+            "the shape's own; the estimate is no sharp limit")
+    elif limit:
         slope, kind, eps = limit
         say(f"tol: a LIMIT SHAPE: the {kind} closes as eps falls (like eps^{slope:.2f} over eps "
             f"{' '.join(format(e, '.4g') for e in eps)}): its sharp limit is a {kind} of zero "

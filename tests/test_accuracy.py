@@ -253,3 +253,15 @@ def test_a_feature_closing_as_eps_falls_is_a_limit_shape():
     pinched = accuracy.Step(0.012, 1000, 0.01, math.nan, False, True, 1.0, 0.0,
                             'under-resolved: topology 2 spheres at eps 0.012')
     assert accuracy.closing(dumbbell[:-1] + [pinched, dumbbell[-1]])[2] == [0.02, 0.0141, 0.01]
+    assert accuracy.following(dumbbell) is None
+
+
+def test_a_feature_that_follows_eps_is_under_resolution():
+    def usable(eps, feature):
+        return accuracy.Step(eps, 1000, 0.9 * eps, 1.0, True, True, 1.0, 0.0, '', feature, 'gap')
+    # the oblate at c0 1, v 0.55 (sharp gap 0.063): its gap near 2 eps (slope 1.07)
+    oblate = [usable(e, f) for e, f in ((0.01414, 0.0283), (0.01, 0.0188), (0.00707, 0.0129),
+                                        (0.005, 0.00895))]
+    slope, kind, eps = accuracy.following(oblate)
+    assert kind == 'gap' and eps == [0.01, 0.00707, 0.005] and 1.0 < slope < 1.1
+    assert accuracy.closing(oblate) == (slope, kind, eps)
