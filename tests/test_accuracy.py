@@ -265,3 +265,6 @@ def test_a_feature_that_follows_eps_is_under_resolution():
     slope, kind, eps = accuracy.following(oblate)
     assert kind == 'gap' and eps == [0.01, 0.00707, 0.005] and 1.0 < slope < 1.1
     assert accuracy.closing(oblate) == (slope, kind, eps)
+    # the oblate at c0 -1, v 0.55 (sharp gap 0.0275): still closing at 3.3 eps, no verdict
+    closing = [usable(e, f) for e, f in ((0.04, 0.126), (0.0283, 0.101), (0.02, 0.0664))]
+    assert accuracy.closing(closing)[0] > 0.9 and accuracy.following(closing) is None
