@@ -17,7 +17,7 @@ DEB := python3-petsc4py python3-slepc4py python3-mpi4py python3-h5py python3-sci
        python3-matplotlib python3-venv python3-pip openmpi-bin
 
 .PHONY: help install run check test test-fast test-1 test-2 tables adapt adapt-discocyte adapt-dumbbell \
-        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 phase-diagram sharp-diagram pears bench bench-basis bench-scenes branches figures extremes limits clean
+        adapt-12271 adapt-24597 adapt-dumbbell-12271 adapt-dumbbell-12271-half adapt-24597-half adapt-discocyte-half table4 atlas phase-diagram sharp-diagram pears bench bench-basis bench-scenes branches figures extremes limits clean
 
 help:
 	@echo "make install  Debian PETSc/petsc4py/MPI/h5py + a venv with pfmembrane"
@@ -43,7 +43,8 @@ help:
 	@echo "make limits   the Clifford torus, symmetric budding and the split as eps falls, runs/limits/"
 	@echo "make crossings  the c0 = 0 prolate-oblate and oblate-stomatocyte crossings, runs/crossings/"
 	@echo "make pears    the prolate's pear bifurcation in c0 at v 0.8 per eps, against the sharp D_pe line (runs/pears)"
-	@echo "make phase-diagram  the atlas: every family continued in v at c0 = -1 ... 2.5, eps 0.01 where 0.02 fails, the merged diagram in runs/atlas/merged"
+	@echo "make atlas    every family continued in v at c0 = -1 ... 2.5, eps 0.01 where 0.02 fails, the merged diagram in runs/atlas/merged"
+	@echo "make phase-diagram  the phase-field diagram by -pf_tol at every (c0, v), beside the sharp one: runs/phase_diagram/diagram.md"
 	@echo "make sharp-diagram  the sharp solver's phase diagram over the atlas's c0 and v, runs/sharp_diagram/diagram.md"
 
 $(PY):
@@ -168,12 +169,16 @@ crossings: install
 # follows them again. Below the oblate fold of eps 0.02 the diagram needs eps 0.01
 # (runs/atlas/notes.md): the oblate and stomatocyte families at c0 <= 0 in atlases of their
 # own, and the pears (full box) in a third, merged with the first into runs/atlas/merged.
-phase-diagram: install
+atlas: install
 	$(PY) runs/atlas/atlas.py --np $(NP) --groups $(NP) --eps 0.02 --nodes 25000 --ds 0.05 --out runs/atlas $(FORCE)
 	$(PY) runs/atlas/atlas.py --np $(NP) --groups 1 --eps 0.01 --nodes 84000 --ds 0.15 --steps 120 --families oblate --c0 -1 -0.5 0 --out runs/atlas/oblate $(FORCE)
 	$(PY) runs/atlas/atlas.py --np $(NP) --groups $(NP) --eps 0.01 --nodes 84000 --ds 0.15 --steps 40 --families stomatocyte --c0 -1 -0.5 0 --out runs/atlas/stomatocyte $(FORCE)
 	$(PY) runs/atlas/atlas.py --np $(NP) --groups 1 --eps 0.02 --nodes 25000 --ds 0.2 --steps 120 --families pear --c0 2.5 --out runs/atlas/pear_eps0.02 $(FORCE)
 	$(PY) runs/atlas/atlas.py --merge runs/atlas runs/atlas/oblate runs/atlas/stomatocyte runs/atlas/pear_eps0.02 --out runs/atlas/merged
+
+# The phase fields by accuracy on demand at every (c0, v), beside the sharp diagram below.
+phase-diagram: install
+	$(VENV)/bin/mpiexec -n $(NP) $(PY) runs/phase_diagram/diagram.py
 
 # The same diagram by the sharp solver (branches continued in v, crossings solved to 1e-10).
 sharp-diagram: install

@@ -1,5 +1,5 @@
 """The study scripts of runs/ as modules, for the tests of their functions:
-`load('runs/atlas/atlas.py')` imports it once per process (as `study_atlas`)."""
+`load('runs/atlas/atlas.py')` imports it once per process (as `study_atlas_atlas`)."""
 import importlib.util
 import os
 import sys
@@ -9,7 +9,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 def load(path):
     """The module of the script at `path` (relative to the repository)."""
-    name = 'study_' + os.path.splitext(os.path.basename(path))[0]
+    folder, stem = os.path.split(os.path.splitext(path)[0])
+    name = f"study_{os.path.basename(folder)}_{stem}"
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, os.path.join(ROOT, path))
         module = importlib.util.module_from_spec(spec)
