@@ -243,6 +243,9 @@ def crossing_rows(sharp, points):
             if resolved(p) and p['state'] in (a, b):
                 by_v.setdefault(p['v'], {})[p['state']] = (p['estimate'], p['bar'])
         vs = sorted(v for v, d in by_v.items() if a in d and b in d and abs(v - t['v']) < 0.06)
+        brackets = [v for v in vs if abs(abs(v - t['v']) - BRACKET) < 1e-3]
+        if len(brackets) == 2:  # the crossing's own points, to their tighter TOL
+            vs = brackets
         diff = [by_v[v][b][0] - by_v[v][a][0] for v in vs]
         bars = [by_v[v][b][1] + by_v[v][a][1] for v in vs]
         cross = [i for i in range(len(vs) - 1)
@@ -309,6 +312,10 @@ def figure(path, sharps, points, found):
 
 def page(args, record, sharps, points, wall):
     lines = report.header('The phase-field phase diagram, by accuracy on demand', record)
+    if args.page_only:
+        lines += [f"This page and the figure rewritten from points.json (no solve) by "
+                  f"`{report.provenance()['command']}` at commit "
+                  f"`{report.provenance()['commit']}`.", '']
     times = [p['wall'] for p in points]
     lines += [f"Every point `pf.accurate` from the scene alone on {args.ranks} ranks: TOL "
               f"{args.tol:g} at the grid points, at most {args.budget:g} s and {args.max_nodes} nodes a point, "
@@ -321,7 +328,8 @@ def page(args, record, sharps, points, wall):
               "TOL reached and matched.", '',
               "![diagram](diagram.png)", '', '## Crossings', '',
               "The sharp crossing against the zero of the phase-field estimates' difference "
-              "(E below - E above, linear between the points either side); its bar in v the "
+              "(E below - E above, linear between the crossing's two points when both "
+              "resolved, else between the resolved points either side); its bar in v the "
               "two states' error bars over the difference's slope; agrees within "
               f"{WITHIN:g} in v. The points at v = sharp v +- {BRACKET:g} are solved to "
               f"TOL = 0.5 x {WITHIN:g} x |slope| / E of the sharp row, between {TOL_FLOOR:g} "
