@@ -16,13 +16,17 @@ a first step can overrun it: a run still going --grace seconds past its budget i
 (SIGTERM to its process group, then SIGKILL) and is "not reached (killed)" with the last step
 checkpoint it wrote, if any. A row per scene whatever happened: reached, not reached (with what it got), failed
 (with its message). The sharp energy is the project's sharp solver's where it has the family
-(stomatocyte, prolate), with its failure said where it fails. Runs from any working directory.
+(stomatocyte, prolate), with its failure said where it fails; the pear's the sharp diagram's
+narrow-neck pear (runs/sharp_diagram/diagram.json). Runs from any working directory.
 """
 import argparse
+import json
 import math
 import os
 import sys
 import warnings
+
+import numpy as np
 
 import pfmembrane as pf
 from pfmembrane import report, sharp
@@ -35,13 +39,13 @@ from children import ROOT, clean, last_line, run, steps  # noqa: E402  (runs/acc
 R = 0.4
 DISCOCYTE = ['-options_file', 'options/discocyte.opts']
 DUMBBELL = ['-options_file', 'options/dumbbell.opts']
-# (name, output stem, base options, branch option, v, reduced c0, sharp family or None)
+# (name, output stem, base options, branch option, v, reduced c0, sharp family)
 CASES = [
     ('stomatocyte c0 -0.5', 'narrow_stomatocyte_m0.5', DISCOCYTE, 'stomatocyte', 0.6, -0.5,
      'stomatocyte'),
     ('stomatocyte c0 -1', 'narrow_stomatocyte_m1', DISCOCYTE, 'stomatocyte', 0.6, -1.0,
      'stomatocyte'),
-    ('pear c0 2.5', 'narrow_pear_2.5', DISCOCYTE, 'pear', 0.73, 2.5, None),
+    ('pear c0 2.5', 'narrow_pear_2.5', DISCOCYTE, 'pear', 0.73, 2.5, 'neck pear'),
     ('dumbbell (prolate) c0 2.5', 'narrow_dumbbell_2.5', DUMBBELL, 'prolate', 0.7, 2.5,
      'prolate'),
 ]
@@ -57,9 +61,16 @@ def last_step(output):
 
 
 def sharp_energy(v, family, C0):
-    """(text of the sharp energy, the energy or NaN)."""
-    if family is None:
-        return 'no sharp family', math.nan
+    """(text of the sharp energy, the energy or NaN): `sharp.solve`'s, or for the
+    narrow-neck branches (which need its branch following) the sharp diagram's
+    (runs/sharp_diagram/diagram.json, interpolated on its grid of 0.005 in v)."""
+    if family.startswith('neck'):
+        with open(os.path.join(ROOT, 'runs', 'sharp_diagram', 'diagram.json')) as f:
+            row = [r for r in json.load(f)['rows'] if abs(r['c0'] - 2 * C0 * R) < 1e-9][0]
+        b = row['branches'][family]
+        order = np.argsort(b['v'])
+        e = float(np.interp(v, np.array(b['v'])[order], np.array(b['E'])[order]))
+        return f"{e:.6f} (the sharp diagram's {family})", e
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter('always')
