@@ -55,9 +55,13 @@ def test_the_crossing_is_the_zero_of_the_difference():
     rows, found = diagram.crossing_rows(sharp, points)
     assert found[0][1] == pytest.approx(0.7013 - 0.02 / 5, rel=1e-3)
     assert rows[0][5] == 'agrees'
+    # TOL not reached: its bar still locates the crossing; without a bar, or held at the
+    # interface width, the state is not used
     points[-1]['status'] = 'not reached'
-    rows, found = diagram.crossing_rows(sharp, points)
-    assert not found and rows[0][5].startswith('not located: oblate at v 0.7113')
+    assert diagram.crossing_rows(sharp, points)[1] == found
+    for change in ({'bar': math.nan}, {'follows': 1.07}):
+        rows, located = diagram.crossing_rows(sharp, points[:-1] + [dict(points[-1], **change)])
+        assert not located and rows[0][5].startswith('not located: oblate at v 0.7113')
 
 
 def test_the_bracket_tol_keeps_the_crossing_within_half_the_window():
@@ -82,7 +86,8 @@ def test_the_least_state_at_a_grid_point():
              point(sharp, 0.75, 'oblate', 0.0, bar=0.2)]
     assert close[0]['state'] == 'prolate'
     assert least(close).startswith('undecided at this TOL')
-    unresolved = [dict(agree[0], status='not reached', stop='time budget'), agree[1]]
+    unresolved = [dict(agree[0], status='not reached', bar=math.nan, stop='time budget'),
+                  agree[1]]
     assert least(unresolved).startswith('not resolved: the prolate (not reached')
 
 

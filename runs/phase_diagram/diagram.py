@@ -151,7 +151,11 @@ def name_state(p, sharp):
 
 
 def resolved(p):
-    return p.get('status') == 'reached' and p.get('state') not in (None, 'unmatched')
+    """A state the diagram uses: a sharp branch, with an error bar (TOL reached or not: its
+    bar decides), its smallest feature not held at the interface width."""
+    return (p.get('status') in ('reached', 'not reached')
+            and p.get('state') not in (None, 'unmatched')
+            and math.isfinite(p.get('bar', math.nan)) and not math.isfinite(p.get('follows', math.nan)))
 
 
 def why(p):
@@ -325,7 +329,9 @@ def page(args, record, sharps, points, wall):
               f"{max(times) if times else 0:.0f} s the longest. The sharp diagram: "
               "runs/sharp_diagram/diagram.md. A state is the sharp branch its start can reach "
               f"nearest in energy within {MATCH:g} relative (or three error bars). 'Resolved': "
-              "TOL reached and matched.", '',
+              "matched, with an error bar (TOL reached or not: the bar decides), its smallest "
+              "feature not held at the interface width; a grid point is undecided where two "
+              "states lie within their bars.", '',
               "![diagram](diagram.png)", '', '## Crossings', '',
               "The sharp crossing against the zero of the phase-field estimates' difference "
               "(E below - E above, linear between the crossing's two points when both "
