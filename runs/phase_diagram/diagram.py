@@ -247,7 +247,7 @@ def crossing_rows(sharp, points):
             if resolved(p) and p['state'] in (a, b):
                 by_v.setdefault(p['v'], {})[p['state']] = (p['estimate'], p['bar'])
         vs = sorted(v for v, d in by_v.items() if a in d and b in d and abs(v - t['v']) < 0.06)
-        brackets = [v for v in vs if abs(abs(v - t['v']) - BRACKET) < 1e-3]
+        brackets = [v for v in vs if abs(abs(v - t['v']) - BRACKET) < 1e-4]
         if len(brackets) == 2:  # the crossing's own points, to their tighter TOL
             vs = brackets
         diff = [by_v[v][b][0] - by_v[v][a][0] for v in vs]
