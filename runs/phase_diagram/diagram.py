@@ -283,32 +283,37 @@ def figure(path, sharps, points, found):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = plt.subplots(figsize=(9.5, 5))
     for sharp in sharps:
         for r in sharp.regions:
             ax.plot([r['low'], r['high']], [sharp.c0 - 0.12] * 2, lw=4,
                     color=COLOURS.get(r['branch'], 'k'), solid_capstyle='butt')
         for t in sharp.transitions:
             ax.plot([t['v']] * 2, [sharp.c0 - 0.25, sharp.c0 + 0.25], 'k-', lw=1)
-        for v in GRID:
-            here = [p for p in points if abs(p['v'] - v) < 1e-9 and p['c0'] == sharp.c0]
-            good = [p for p in here if resolved(p)]
-            if good:
-                best = min(good, key=lambda p: p['estimate'])
-                ax.plot(v, sharp.c0 + 0.08, 'o', color=COLOURS.get(best['state'], 'k'), ms=8)
-            if not good or sharp.least(v) not in {p['state'] for p in good}:
-                ax.plot(v, sharp.c0 + 0.08, 'x', color='k', ms=9)
+        mine = [p for p in points if p['c0'] == sharp.c0]
+        for v, _, least, verdict, _ in least_rows(sharp, mine) if mine else []:
+            y = sharp.c0 + 0.08
+            if verdict == 'agrees':
+                ax.plot(float(v), y, 'o', color=COLOURS.get(least, 'k'), ms=8)
+            elif verdict.startswith('undecided'):
+                ax.plot(float(v), y, 's', color='0.6', ms=7)
+            elif verdict.startswith('DISAGREES'):
+                ax.plot(float(v), y, 'o', color=COLOURS.get(least, 'k'), ms=8, mec='r', mew=2.5)
+            else:
+                ax.plot(float(v), y, 'x', color='k', ms=9)
     for c0, v, a, b in found:
         ax.plot(v, c0 + 0.08, 'kd', ms=5)
     for name, colour in COLOURS.items():
         ax.plot([], [], 'o', color=colour, label=name)
+    ax.plot([], [], 's', color='0.6', label='undecided within the bars')
+    ax.plot([], [], 'o', color='w', mec='r', mew=2.5, label='disagrees')
     ax.plot([], [], 'kx', label="sharp least state not resolved")
     ax.plot([], [], 'kd', label='phase-field crossing')
     ax.set_xlabel('reduced volume v')
     ax.set_ylabel('c0 = 2 C0 R')
-    ax.set_title('phase field (dots: least resolved state) over the sharp diagram '
-                 '(bars, lines)', fontsize=9)
-    ax.legend(fontsize=7, loc='upper left')
+    ax.set_title('phase field (markers: the least state where resolved) over the sharp '
+                 'diagram (bars: least branch; lines: transitions)', fontsize=9)
+    ax.legend(fontsize=7, loc='upper left', bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
