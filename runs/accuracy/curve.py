@@ -1,10 +1,10 @@
 """Time to accuracy: the wall time of `-pf_tol TOL` (with `-pf_box auto`) for TOL = 1e-2, 3e-3,
 1e-3, 3e-4 (and 1e-4) on the discocyte, the dumbbell and the stomatocyte at v 0.6, each TOL a
 run of its own from the scene files alone (no step checkpoints kept), on NP ranks; written to
-runs/accuracy/curve.md, rewritten after every run.
+runs/accuracy/curve.md (--page), rewritten after every run.
 
     python runs/accuracy/curve.py [--np 2] [--tols 1e-2,3e-3,1e-3,3e-4,1e-4]
-        [--budget 150] [--until HH:MM] [--out runs/accuracy]
+        [--budget 150] [--until HH:MM] [--out runs/accuracy] [--page curve.md] [--no-hand]
 
 The TOLs go cheap first, every scene at one TOL before the next TOL. Every run is the command
 line in a child process (its wall time the child's, start-up included) with `-pf_tol_time`
@@ -73,6 +73,7 @@ def main(argv=None):
     ap.add_argument('--until', default=None, help='HH:MM UTC: no run goes past it')
     ap.add_argument('--out', default=os.path.join(ROOT, 'runs', 'accuracy'))
     ap.add_argument('--no-hand', action='store_true', help='no hand-written sequences')
+    ap.add_argument('--page', default='curve.md', help='the page written under --out')
     args = ap.parse_args(argv)
     record = report.provenance()
     out = os.path.abspath(args.out)
@@ -94,7 +95,7 @@ def main(argv=None):
                                'bar', 'bar / E', 'sharp', 'true error', 'bar / true error',
                                'tol reached', 'eps', 'nodes', 'stop', 'hand: eps (nodes)',
                                'hand wall s', 'hand estimate +- bar', 'wall / hand wall'], rows)
-        with open(os.path.join(out, 'curve.md'), 'w') as f:
+        with open(os.path.join(out, args.page), 'w') as f:
             f.write('\n'.join(lines) + '\n')
 
     for tol in tols:
@@ -140,7 +141,7 @@ def main(argv=None):
                          *hand])
             print(' | '.join(map(str, rows[-1])), flush=True)
             write()
-    print(os.path.join(out, 'curve.md'))
+    print(os.path.join(out, args.page))
     return 0
 
 
