@@ -193,6 +193,9 @@ def test_an_under_resolved_step_jumps_to_the_feature():
     assert accuracy.next_eps([usable, pinched], 0.5, 0.04, sharp) == \
         (pytest.approx(0.01), (0.08, 'gap'))
     assert accuracy.next_eps([usable, pinched], 0.2, 0.04, sharp)[0] == pytest.approx(0.008)
+    # a feature within 2.5 eps of its step is held at the interface: the sharp start's instead
+    held = accuracy.Step(0.03, 1000, 0.025, 12.5, True, True, 1.0, 0.0, '', 0.06, 'gap')
+    assert accuracy.next_eps([held, pinched], 0.5, 0.04, sharp)[1][0] == sharp.size
     # after a usable step, or without any feature known: one ratio step
     assert accuracy.next_eps([usable], 0.5, 0.04, sharp)[0] == pytest.approx(0.015)
     assert accuracy.next_eps([pinched], 0.5, 0.04, None) == (pytest.approx(0.02), None)

@@ -405,6 +405,7 @@ def main(argv=None):
         if kept.get('key') == key or args.page_only:
             points = kept['points']
             record = kept['record']
+            args.ranks = kept['key']['ranks']
     t0 = time.perf_counter()
     for sharp in sharps:
         for v, family, tol, budget in row_points(sharp, args.tol, args.budget):
