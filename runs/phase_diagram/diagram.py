@@ -350,6 +350,15 @@ def page(args, record, sharps, points, wall):
         r, f = crossing_rows(sharp, [p for p in points if p['c0'] == sharp.c0])
         rows += r
         found += f
+    verdicts = [row[3].split(':')[0] for sharp in sharps
+                for row in least_rows(sharp, [p for p in points if p['c0'] == sharp.c0])]
+    counts = {v: verdicts.count(v) for v in dict.fromkeys(verdicts)}
+    agree = [row[4] for row in rows if row[5] == 'agrees']
+    lines[lines.index('![diagram](diagram.png)'):lines.index('![diagram](diagram.png)')] = [
+        f"Summary: of {len(verdicts)} grid points ({len(sharps)} rows of {len(GRID)} v), "
+        + ', '.join(f"{n} {v}" for v, n in counts.items())
+        + f"; of {len(rows)} sharp crossings {len(found)} located, {len(agree)} within "
+        f"{WITHIN:g} in v ({', '.join(agree) or 'none'}).", '']
     lines += report.table(['c0', 'above / below', 'sharp v', 'phase field v +- bar', 'difference',
                            'verdict', 'E below - E above at v'], rows)
     for sharp in sharps:
