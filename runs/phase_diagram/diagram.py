@@ -322,9 +322,9 @@ def figure(path, sharps, points, found):
 def page(args, record, sharps, points, wall):
     lines = report.header('The phase-field phase diagram, by accuracy on demand', record)
     if args.page_only:
+        now = report.provenance()
         lines += [f"This page and the figure rewritten from points.json (no solve) by "
-                  f"`{report.provenance()['command']}` at commit "
-                  f"`{report.provenance()['commit']}`.", '']
+                  f"`{now['command']}` at commit `{now['commit']}`.", '']
     times = [p['wall'] for p in points]
     lines += [f"Every point `pf.accurate` from the scene alone on {args.ranks} ranks: TOL "
               f"{args.tol:g} at the grid points, at most {args.budget:g} s and {args.max_nodes} nodes a point, "
