@@ -383,6 +383,24 @@ def _energy_at(branch, v):
     return float(core._evaluate(grid, x, branch.c)[0][0])
 
 
+def stored_energy(row, name, v, asymmetric=False, floor=1e-6):
+    """E of branch `name` of a stored row (an entry of `rows` in the JSON a diagram is
+    kept in) at v, linear between its points; NaN outside them, or without the branch.
+    With `asymmetric`, only its points of up-down asymmetry above `floor` count (the neck
+    pear, which turns into the symmetric neck dumbbell as v falls)."""
+    b = row['branches'].get(name)
+    if not b or not b['v']:
+        return math.nan
+    order = np.argsort(b['v'])
+    vs, es = np.asarray(b['v'])[order], np.asarray(b['E'])[order]
+    if asymmetric:
+        keep = np.asarray(b['asymmetry'])[order] > floor
+        vs, es = vs[keep], es[keep]
+    if len(vs) < 2 or not vs[0] - 1e-9 <= v <= vs[-1] + 1e-9:
+        return math.nan
+    return float(np.interp(v, vs, es))
+
+
 def _on_grid(branch):
     """{grid index: energy} of the branch's points on the v grid."""
     return {round(_grid_index(p['v'])): p['E'] for p in branch.points if p['on_grid']}

@@ -26,11 +26,10 @@ import os
 import sys
 import warnings
 
-import numpy as np
-
 import pfmembrane as pf
 from pfmembrane import report, sharp
 from pfmembrane.series import seconds_left
+from pfmembrane.sharp.diagram import stored_energy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 if HERE not in sys.path:
@@ -67,9 +66,7 @@ def sharp_energy(v, family, C0):
     if family.startswith('neck'):
         with open(os.path.join(ROOT, 'runs', 'sharp_diagram', 'diagram.json')) as f:
             row = [r for r in json.load(f)['rows'] if abs(r['c0'] - 2 * C0 * R) < 1e-9][0]
-        b = row['branches'][family]
-        order = np.argsort(b['v'])
-        e = float(np.interp(v, np.array(b['v'])[order], np.array(b['E'])[order]))
+        e = stored_energy(row, family, v)
         return f"{e:.6f} (the sharp diagram's {family})", e
     try:
         with warnings.catch_warnings(record=True) as caught:

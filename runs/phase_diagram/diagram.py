@@ -35,6 +35,7 @@ import numpy as np
 import pfmembrane as pf
 from pfmembrane import report
 from pfmembrane.series import seconds_left
+from pfmembrane.sharp.diagram import stored_energy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -53,7 +54,6 @@ OWN = {'prolate': ('prolate', 'neck dumbbell'), 'oblate': ('oblate',),
        'stomatocyte': ('stomatocyte',), 'pear': ('neck pear',)}
 START = {'prolate': 'prolate', 'oblate': 'oblate', 'stomatocyte': 'stomatocyte',
          'neck pear': 'pear', 'neck dumbbell': 'prolate'}
-ASYMMETRIC = 1e-6       # the sharp neck pear is a pear where its asymmetry exceeds this
 
 
 # --- the sharp diagram ----------------------------------------------------------------------
@@ -62,27 +62,14 @@ class Sharp:
     """One row of the sharp diagram: its branches' E(v), regions and transitions."""
 
     def __init__(self, row):
+        self.row = row
         self.c0 = row['c0']
         self.regions = row['regions']
         self.transitions = row['transitions']
-        self.branches = {}
-        for name, b in row['branches'].items():
-            if not b['v']:
-                continue
-            order = np.argsort(b['v'])
-            v = np.array(b['v'])[order]
-            keep = np.ones(len(v), bool)
-            if name == 'neck pear':
-                keep = np.array(b['asymmetry'])[order] > ASYMMETRIC
-            if keep.sum() >= 2:
-                self.branches[name] = (v[keep], np.array(b['E'])[order][keep])
 
     def energy(self, name, v):
-        """The branch's energy at v (interpolated on its 0.005 grid), NaN outside it."""
-        if name not in self.branches:
-            return math.nan
-        vs, es = self.branches[name]
-        return float(np.interp(v, vs, es)) if vs[0] - 1e-9 <= v <= vs[-1] + 1e-9 else math.nan
+        """The branch's energy at v (the neck pear: where it is a pear), NaN outside it."""
+        return stored_energy(self.row, name, v, asymmetric=name == 'neck pear')
 
     def least(self, v):
         """The least-energy branch at grid v."""
