@@ -77,7 +77,11 @@ the adaptive sequences of options/adapt/ do by hand:
   more than `max_nodes` nodes needed, or `max_time` seconds of this call spent
   (or predicted to be, from the last step's time scaled as nodes^1.5), or two
   failed solves in a row: then the best estimate is reported with
-  tol_reached 0 and "TOL not reached (why)". At least one step is solved.
+  tol_reached 0 and "TOL not reached (why)". A solve still running at
+  `max_time` stops at its next iteration (`parallel.faults.deadline`), so the
+  budget holds within one iteration; a solve stopped so, or by a signal, is no
+  step and is not checkpointed (a signal's status goes to the result). Only a
+  first step cut so returns an unconverged result without an estimate.
 - **restart**: with `checkpoints` (a directory) every step's result is written
   there as step<k>.h5, its attributes `tol_step`, `tol_usable`, `tol_note` and
   the running `sharp_estimate`, `sharp_error`, `tol_reached`; a later call
@@ -95,7 +99,7 @@ import numpy as np
 from pfmembrane.grid import RESOLUTION, Grid
 from pfmembrane.io import checkpoint
 from pfmembrane.io.options import Params, UsageError
-from pfmembrane.parallel import petsc
+from pfmembrane.parallel import faults, petsc
 from pfmembrane.result import Result, read
 
 # The uniform grid of a step: h = eps / H_RATIO on the hexagonal lattice (the paper's Table 1:
@@ -330,7 +334,7 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
            f"{given:g})" if not steps and eps0 < given else '')
         + f" by {ratio:.4g}, budget {max_nodes} nodes, {max_time:g} s"
         + (f", steps in {checkpoints}" if checkpoints else ''))
-    unused, stop = None, ''
+    unused, stop, halted = None, '', None
     while True:
         if reached(steps, tol):
             stop = 'TOL reached'
@@ -369,7 +373,16 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
                 stop = (f"time budget: the next step (eps {eps:.4g}, {grid.n_nodes} nodes) "
                         f"would end near {elapsed + predicted:.0f} s > {max_time:g} s")
                 break
-        res = solve(step_scene, grid, eps, start=start, options=options, checks=True)
+        with faults.deadline(t0 + max_time):
+            res = solve(step_scene, grid, eps, start=start, options=options, checks=True)
+        if res.status > 1:  # the budget or a signal stopped the solve: no step to keep
+            halted = res
+            cut = mpi.allreduce(time.perf_counter() - t_step, op=_max())
+            stop = ((f"time budget: the step at eps {eps:.4g} ({grid.n_nodes} nodes) stopped "
+                     f"at {max_time:g} s, after {cut:.0f} s")
+                    if res.status == faults.OutOfTime.status else
+                    f"{res.message} during the step at eps {eps:.4g}")
+            break
         unused = set(res.unused_options) if unused is None else unused & set(res.unused_options)
         topology = res.topology
         estimate = res.level_set_energy
@@ -413,9 +426,9 @@ def accurate(scene, tol, eps0=None, ratio=RATIO, max_nodes=MAX_NODES, max_time=M
             say(f"{note} (expected {expect}): not an estimate; eps reduced")
         elif not usable:
             say(f"tol step {k}: {note}: not an estimate")
-    final = _final(steps, results, prev, checkpoints, mpi)
-    if final is None:  # nothing solved and nothing found: cannot happen (one step at least)
-        raise RuntimeError("no step solved")
+    final = _final(steps, results, prev, checkpoints, mpi) if steps else halted
+    if halted is not None and halted.status != faults.OutOfTime.status:
+        final.status, final.message = halted.status, halted.message  # a signal: the run ends
     value, bar = error_bar(steps)
     done = reached(steps, tol)
     wall = mpi.allreduce(time.perf_counter() - t0, op=_max())

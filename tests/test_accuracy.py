@@ -2,6 +2,7 @@
 topology check, a resumed sequence, and the command line on the coarse discocyte."""
 import math
 import sys
+import time
 
 import h5py
 import pytest
@@ -10,6 +11,7 @@ import pfmembrane as pf
 from pfmembrane import accuracy
 from pfmembrane.io import options
 from pfmembrane.io.options import UsageError
+from pfmembrane.parallel import faults
 
 SHARP = 9.1265694  # the sharp discocyte, v 0.8, R 0.4 (runs/sharp/validation.md)
 TOL = 1e-2
@@ -72,24 +74,27 @@ def test_a_first_grid_over_the_node_budget_is_refused_before_any_solve(comm, mon
 @pytest.fixture(scope='module')
 def sequence(comm, tmp_path_factory):
     """The coarse discocyte to TOL 1e-2 in two calls on one checkpoint directory: the
-    first with a 1 s budget (one step), the second resuming. Each call's solves counted."""
+    first with its second step cut by the time budget (its deadline already past), the
+    second resuming. Each call's solves counted."""
     directory = str(tmp_path_factory.mktemp('tol') / 'steps')
     calls = []
     solve = accuracy.solve
 
     def counted(*args, **kwargs):
         calls[-1].append(kwargs.get('eps', args[2] if len(args) > 2 else None))
+        if len(calls) == 1 and len(calls[0]) == 2:
+            with faults.deadline(-math.inf):
+                return solve(*args, **kwargs)
         return solve(*args, **kwargs)
 
     runs = []
     accuracy.solve = counted
     try:
-        for budget in (1.0, accuracy.MAX_TIME):
+        for _ in range(2):
             calls.append([])
             lines = []
-            res = pf.accurate(pf.Scene(box='auto'), TOL, eps0=EPS0, max_time=budget,
-                              checkpoints=directory, adapt=True, comm=comm,
-                              print_fn=lines.append)
+            res = pf.accurate(pf.Scene(box='auto'), TOL, eps0=EPS0, checkpoints=directory,
+                              adapt=True, comm=comm, print_fn=lines.append)
             runs.append((res, lines))
     finally:
         accuracy.solve = solve
@@ -97,11 +102,27 @@ def sequence(comm, tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_a_budget_too_small_stops_with_tol_not_reached(sequence):
+def test_a_step_cut_by_the_time_budget_stops_with_tol_not_reached(sequence):
     res, lines = sequence[0][0]
-    assert res.attrs['tol_reached'] == 0 and 'time budget' in res.attrs['tol_stop']
-    assert any('TOL not reached' in line for line in lines)
-    assert len(res.attrs['tol_eps']) == 1
+    a = res.attrs
+    assert a['tol_reached'] == 0
+    assert a['tol_stop'].startswith('time budget: the step at eps 0.04243')
+    assert any('TOL not reached (time budget' in line for line in lines)
+    assert len(a['tol_eps']) == 1 and a['tol_eps'][0] == EPS0  # the cut step is no step
+    assert res.status == 0 and res.attrs['tol_step'] == 0
+
+
+def test_a_deadline_stops_the_poll_on_time():
+    mpi = pf.api.petsc(sys.argv[:1]).COMM_SELF.tompi4py()
+    faults.poll(mpi)  # no deadline
+    with faults.deadline(time.perf_counter() + 60):
+        faults.poll(mpi)
+        with faults.deadline(-math.inf):
+            with pytest.raises(faults.OutOfTime):
+                faults.poll(mpi)
+        with faults.deadline(math.inf):  # a later deadline leaves the earlier in force
+            faults.poll(mpi)
+    faults.poll(mpi)
 
 
 @pytest.mark.slow
@@ -128,8 +149,9 @@ def test_an_under_resolved_topology_is_no_estimate(sequence):
 @pytest.mark.slow
 def test_a_rerun_resumes_from_the_last_step_found(sequence):
     runs, calls, directory = sequence
-    assert calls[0] == [EPS0]
+    assert calls[0] == [EPS0, calls[1][0]]
     assert calls[1] and EPS0 not in calls[1]  # step 0 is read back, not solved again
+    # the step the budget cut was not kept: it is solved again
     assert any('resuming after step 0' in line for line in runs[1][1])
     with h5py.File(f'{directory}/step1.h5') as f:
         assert f.attrs['tol_step'] == 1 and f.attrs['tol_usable'] == 1

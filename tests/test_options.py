@@ -190,6 +190,15 @@ def test_an_auto_box_holds_the_shapes_with_seven_eps_to_spare(branch, box):
     assert read({'box': 'auto', 'restart': 'any.h5'}).box == 'auto'  # the checkpoint's box
 
 
+def test_an_auto_box_without_a_start_is_refused():
+    # The stomatocyte's one start is the sharp shape; at c0 -0.5 (2 C0 R) and v 0.85 the
+    # sharp solver does not reach the branch, so nothing sizes the box.
+    from pfmembrane import api
+    scene = api.Scene(branch='stomatocyte', box='auto', reduced_volume=0.85, c0=-0.5 / 0.8)
+    with pytest.raises(UsageError, match=r'-pf_box auto: no stomatocyte at v 0.85'):
+        scene.sized(0.04)
+
+
 @pytest.mark.parametrize('values, message', [
     ({'harmonics': '2', 'dihedral': '1'}, r'-pf_harmonics with -pf_dihedral 1: m = 1 holds'),
     ({'harmonics': '2', 'dihedral': '2', 'mirror': '0'}, r'-pf_mirror 0: sines'),

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from pfmembrane.sharp import solver as sharp
-from pfmembrane.io.options import STARTS
+from pfmembrane.io.options import STARTS, UsageError
 from pfmembrane.kernels.initial import construction, extent
 from pfmembrane.kernels.functionals import F_E
 from pfmembrane.kernels.nodes import nodal_spacing, uniform
@@ -66,6 +66,10 @@ def required_box(branch, vs, eps, radius, c0=0.0, k=1.0, margin=AUTO_MARGIN):
     for v in vs:
         for kind, size in extents(branch, v, radius, c0, k).items():
             sizes[kind] = tuple(np.maximum(sizes.get(kind, (0.0, 0.0)), size))
+    if not sizes:  # the branch's only start is the sharp shape, and that solver lost it
+        raise UsageError(f"-pf_box auto: no {branch} at v {', '.join(format(v, 'g') for v in vs)}"
+                         f", c0 {c0:g}: the sharp-interface solver does not reach that branch "
+                         f"there, the {branch}'s only start")
     r, z = np.max(list(sizes.values()), axis=0) + margin * eps
     return (float(r), float(2.0 * z)), sizes
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from pfmembrane.io.options import UsageError, read_settings, targets
 from pfmembrane.parallel.assembly import Assembly
-from pfmembrane.parallel.faults import Interrupted
+from pfmembrane.parallel.faults import Interrupted, OutOfTime
 from pfmembrane.parallel.petsc import Options, start
 from pfmembrane.parallel.solver import SolveError, Solver
 
@@ -104,7 +104,7 @@ class Problem:
                         f"E {s['energy']:.8f}, constraint residual {s['residual']:.2e}, "
                         f"max|phi| {self.assembly.max_abs_phi(x):.4f}, {s['time']:.2f} s",
                         comm=self.comm)
-        except (SolveError, Interrupted) as e:
+        except (SolveError, Interrupted, OutOfTime) as e:
             status = getattr(e, 'status', 1)
             return (False, str(e), status, self.assembly.gradients(x, solver.gE, solver.gA),
                     logged)
