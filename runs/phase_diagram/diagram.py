@@ -1,8 +1,9 @@
 """The phase-field phase diagram of the spontaneous-curvature model, by accuracy on demand,
 beside the sharp reference diagram (runs/sharp_diagram/diagram.json).
 
-    mpiexec -n 2 python runs/phase_diagram/diagram.py [--tol 1e-3] [--budget 90]
-        [--max-nodes 25000] [--c0 X ...] [--until HH:MM] [--fresh] [--out runs/phase_diagram]
+    mpiexec -n 2 python runs/phase_diagram/diagram.py [--tol 3e-3] [--budget 120]
+        [--max-nodes 25000] [--c0 X ...] [--until HH:MM] [--fresh] [--page-only]
+        [--out runs/phase_diagram]
 
 Every point (c0, v, family) is `pf.accurate` from the scene alone (`-pf_box auto`, the
 half box for the up-down symmetric prolate and oblate), TOL --tol, at most --budget s and
@@ -19,11 +20,20 @@ what stopped it (its smallest feature, the eps and nodes reached). Each sharp cr
 located in the phase field by the zero of the two states' estimate difference (linear
 between the nearest points on either side) and compared within WITHIN in v.
 
-The points done are kept in points.json (rank 0, after every point) and a later call with
-the same commit, TOL, budget and node cap goes on from them (--fresh: start over); the page
-(diagram.md, with provenance), the figure (diagram.png) are rewritten after every row.
+Each rank is a worker that solves one point at a time on its own (COMM_SELF), taking the
+next point nobody holds, the longest first (by an earlier points.json's walls), so the ranks
+end together. The points are small, so two ranks on one point run well short of twice as
+fast as one: two points side by side end more points an hour than one point on two ranks.
+
+Every point is kept in points.json the moment it ends (under a lock on points.lock: the
+ranks share one machine) and a later call with the same commit, TOL, budget, node cap and
+number of workers goes on from them (--fresh: start over); the page (diagram.md, with
+provenance) and the figure (diagram.png) are written at the end, or from points.json alone
+by --page-only (no PETSc).
 """
 import argparse
+import contextlib
+import fcntl
 import json
 import math
 import os
@@ -104,7 +114,8 @@ def solve_point(c0, v, family, tol, budget, args):
                      symmetric=family in SYMMETRIC)
     t0 = time.perf_counter()
     try:
-        res = pf.accurate(scene, tol, max_time=budget, max_nodes=args.max_nodes)
+        res = pf.accurate(scene, tol, max_time=budget, max_nodes=args.max_nodes,
+                          comm=pf.petsc().COMM_SELF)
     except Exception as exc:  # a refused first step, a start that fails: the point's result
         message = ' '.join(str(exc).split())
         return {**record, 'status': f"failed: {type(exc).__name__}: {message}",
@@ -313,10 +324,12 @@ def page(args, record, sharps, points, wall):
         lines += [f"This page and the figure rewritten from points.json (no solve) by "
                   f"`{now['command']}` at commit `{now['commit']}`.", '']
     times = [p['wall'] for p in points]
-    lines += [f"Every point `pf.accurate` from the scene alone on {args.ranks} ranks: TOL "
+    lines += [f"Every point `pf.accurate` from the scene alone on one rank, {args.workers} points "
+              "at a time (each rank of the run a worker taking the next point): TOL "
               f"{args.tol:g} at the grid points, at most {args.budget:g} s and {args.max_nodes} nodes a point, "
               "`-pf_box auto` (the half box for the prolate and the oblate); c0 = 2 C0 R, "
-              f"R {R}. {len(points)} points in {sum(times):.0f} s ({wall:.0f} s this call), "
+              f"R {R}. {len(points)} points, their walls summing to {sum(times):.0f} s; "
+              f"the calls that solved them took {wall:.0f} s ({wall / 60:.1f} min) in all; "
               f"{np.median(times) if times else 0:.1f} s the median point, "
               f"{max(times) if times else 0:.0f} s the longest. The sharp diagram: "
               "runs/sharp_diagram/diagram.md. A state is the sharp branch its start can reach "
@@ -371,10 +384,77 @@ def page(args, record, sharps, points, wall):
     figure(os.path.join(args.out, 'diagram.png'), sharps, points, found)
 
 
+class Store:
+    """points.json, shared by the workers (one machine): the points done and the points
+    claimed, read and rewritten under an exclusive lock on points.lock, so each worker takes
+    the next point nobody holds and a point is kept the moment it ends."""
+
+    def __init__(self, path, key, record):
+        self.path, self.key, self.record = path, key, record
+
+    @contextlib.contextmanager
+    def locked(self):
+        with open(self.path + '.lock', 'a') as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                yield self._read()
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    def _read(self):
+        if os.path.exists(self.path):
+            with open(self.path) as f:
+                return json.load(f)
+        return {'key': self.key, 'record': self.record, 'points': [], 'claimed': []}
+
+    def _write(self, kept):
+        with open(self.path + '.new', 'w') as f:
+            json.dump(kept, f)
+        os.replace(self.path + '.new', self.path)
+
+    def start(self, fresh):
+        """Keep the points of an earlier call with the same key unless `fresh`; no claims."""
+        with self.locked() as kept:
+            if fresh or kept.get('key') != self.key:
+                kept = {'key': self.key, 'record': self.record, 'points': []}
+            kept['claimed'] = []
+            self._write(kept)
+
+    def claim(self, todo):
+        """The first of `todo` neither done nor claimed, now claimed; None when none is."""
+        with self.locked() as kept:
+            taken = {ident(p) for p in kept['points'] + kept['claimed']}
+            for c0, v, family, tol, budget in todo:
+                if ident({'c0': c0, 'v': v, 'family': family}) not in taken:
+                    kept['claimed'].append({'c0': c0, 'v': v, 'family': family})
+                    self._write(kept)
+                    return c0, v, family, tol, budget
+        return None
+
+    def add(self, p):
+        with self.locked() as kept:
+            kept['points'].append(p)
+            kept['claimed'] = [c for c in kept['claimed'] if ident(c) != ident(p)]
+            self._write(kept)
+
+
+def ident(p):
+    return p['c0'], round(p['v'], 4), p['family']
+
+
+def schedule(sharps, args, prior):
+    """Every point (c0, v, family, TOL, budget), the longest first (its wall in `prior`, an
+    earlier points.json at any commit, else its budget), so the workers end together."""
+    todo = [(sharp.c0, v, family, tol, budget) for sharp in sharps
+            for v, family, tol, budget in row_points(sharp, args.tol, args.budget)]
+    return sorted(todo, key=lambda t: -prior.get(ident({'c0': t[0], 'v': t[1], 'family': t[2]}),
+                                                 t[4]))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--tol', type=float, default=3e-3, help='TOL of the grid points')
-    ap.add_argument('--budget', type=float, default=90.0, help='seconds a point')
+    ap.add_argument('--budget', type=float, default=120.0, help='seconds a point')
     ap.add_argument('--max-nodes', type=int, default=25000, help='nodes a point')
     ap.add_argument('--c0', type=float, nargs='*', default=CURVATURES)
     ap.add_argument('--until', default=None, help='HH:MM UTC: no point goes past it')
@@ -383,45 +463,49 @@ def main(argv=None):
                     help='rewrite the page and the figure from points.json, no solve')
     ap.add_argument('--out', default=HERE)
     args = ap.parse_args(argv)
-    PETSc = pf.petsc()
-    from mpi4py import MPI
-    comm = PETSc.COMM_WORLD.tompi4py()
-    args.ranks = comm.Get_size()
     args.out = os.path.abspath(args.out)
-    record = report.provenance()
     with open(SHARP) as f:
         sharps = [Sharp(r) for r in json.load(f)['rows'] if r['c0'] in args.c0]
-    store = os.path.join(args.out, 'points.json')
-    key = {'commit': record['commit'], 'tol': args.tol, 'budget': args.budget,
-           'max_nodes': args.max_nodes, 'ranks': args.ranks}
-    points = []
-    if not args.fresh and os.path.exists(store):
-        with open(store) as f:
+    path = os.path.join(args.out, 'points.json')
+    if args.page_only:
+        with open(path) as f:
             kept = json.load(f)
-        if kept.get('key') == key or args.page_only:
-            points = kept['points']
-            record = kept['record']
-            args.ranks = kept['key']['ranks']
+        args.workers = kept['key']['workers']
+        page(args, kept['record'], sharps, kept['points'], kept.get('elapsed', math.nan))
+        print(os.path.join(args.out, 'diagram.md'))
+        return 0
+    PETSc = pf.petsc()
+    from mpi4py import MPI
+    world = PETSc.COMM_WORLD.tompi4py()
+    rank, args.workers = world.Get_rank(), world.Get_size()
+    record = report.provenance() if rank == 0 else None
+    record = world.bcast(record)
+    store = Store(path, {'commit': record['commit'], 'tol': args.tol, 'budget': args.budget,
+                         'max_nodes': args.max_nodes, 'workers': args.workers}, record)
+    prior = {}
+    if rank == 0:
+        if os.path.exists(path):
+            with open(path) as f:
+                prior = {ident(p): p['wall'] for p in json.load(f).get('points', [])}
+        store.start(args.fresh)
+    prior = world.bcast(prior)
+    todo = schedule(sharps, args, prior)
     t0 = time.perf_counter()
-    for sharp in sharps:
-        for v, family, tol, budget in row_points(sharp, args.tol, args.budget):
-            if args.page_only or any(p['c0'] == sharp.c0 and abs(p['v'] - v) < 1e-9
-                                     and p['family'] == family for p in points):
-                continue
-            p = solve_point(sharp.c0, v, family, tol, budget, args)
-            p['wall'] = comm.allreduce(p['wall'], op=MPI.MAX)
-            p['state'], p['sharp'], p['relative'] = name_state(p, sharp)
-            points.append(p)
-            if comm.Get_rank() == 0:
-                print(f"c0 {sharp.c0:g} v {v:.4f} {family}: {p['status'][:60]}, "
-                      f"{p.get('estimate', math.nan):.6f} +- {p.get('bar', math.nan):.2g}, "
-                      f"{p['state']} ({100 * p['relative']:+.3f}%), {p['wall']:.1f} s",
-                      flush=True)
-                with open(store, 'w') as f:
-                    json.dump({'key': key, 'record': record, 'points': points}, f)
-        if comm.Get_rank() == 0:
-            page(args, record, sharps, points, time.perf_counter() - t0)
-    if comm.Get_rank() == 0:
+    while (task := store.claim(todo)) is not None:
+        c0, v, family, tol, budget = task
+        sharp = next(s for s in sharps if s.c0 == c0)
+        p = solve_point(c0, v, family, tol, budget, args)
+        p['state'], p['sharp'], p['relative'] = name_state(p, sharp)
+        store.add(p)
+        print(f"[{rank}] c0 {c0:g} v {v:.4f} {family}: {p['status'][:60]}, "
+              f"{p.get('estimate', math.nan):.6f} +- {p.get('bar', math.nan):.2g}, "
+              f"{p['state']} ({100 * p['relative']:+.3f}%), {p['wall']:.1f} s", flush=True)
+    elapsed = world.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    if rank == 0:
+        with store.locked() as kept:
+            kept['elapsed'] = kept.get('elapsed', 0.0) + elapsed  # every call on these points
+            store._write(kept)
+        page(args, kept['record'], sharps, kept['points'], elapsed)
         print(os.path.join(args.out, 'diagram.md'))
     return 0
 
