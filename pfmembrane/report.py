@@ -58,6 +58,13 @@ def header(title, record):
     return [f"# {title}", '', provenance_line(record), '']
 
 
+def write(path, lines):
+    """Write a page: `lines` one to a line. Returns `path`."""
+    with open(path, 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    return path
+
+
 def table(columns, rows):
     """A markdown table: `columns` the header cells, `rows` lists of cells
     (any values; str() of each)."""

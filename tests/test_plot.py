@@ -10,7 +10,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import levelset, plot  # noqa: E402
+from pfmembrane.analysis import field3d, levelset, plot  # noqa: E402
 
 BOX = (1.0, 2.0)
 A, B, ZC = 0.5, 0.8, 1.0  # semi-axes along r and z, centre height
@@ -191,3 +191,45 @@ def test_a_field_without_a_membrane_is_drawn_without_one(pair):
     surface = plot.plot_3d(empty)
     assert len(surface.collections) == 0
     plt.close(surface.figure)
+
+
+def ellipsoid_checkpoint(path, eps=0.08, axes=(0.5, 0.3, 0.3), box=(0.8, 1.2)):
+    """Write a checkpoint of the harmonics m = 0, 2, 4 of a tanh ellipsoid long along x
+    (no solve), centred at Zb / 2."""
+    from pfmembrane.kernels import initial
+    from pfmembrane.kernels.harmonics import Harmonics
+    from pfmembrane.kernels.nodes import uniform
+    xy = uniform(box, 1500)
+    h = Harmonics(4, 2)
+    phi = initial.harmonic_coefficients(
+        xy - [0.0, 0.5 * box[1]], lambda p: initial.ellipsoid_phi(p, axes, eps), h, 0.02)
+    attrs = {"energy": 9.0, "area": 1.5, "volume": 0.3, "moment": 0.0, "eps": eps,
+             "k": 1.0, "c0": 0.0, "gamma": 0.8, "nu_area": 0.0, "nu_volume": 0.0,
+             "converged": 1, "wall_time": 1.0, "box": box, "cutoff": 1e-6,
+             "harmonics": h.m, "harmonics_highest": 4, "dihedral": 2}
+    checkpoint.write(path, xy, phi, attrs, sample=field3d.sample)
+    return checkpoint.read(path)
+
+
+def test_a_checkpoint_with_harmonics_is_drawn_as_its_3d_surface(tmp_path):
+    ckpt = ellipsoid_checkpoint(tmp_path / "ellipsoid.h5")
+    ax = plot.plot_3d(ckpt)
+    ax.figure.canvas.draw()  # a 3D collection has its 2D paths once projected
+    (drawn,) = ax.collections
+    surface = field3d.level_surface(ckpt)
+    assert len(drawn.get_paths()) == len(surface.triangles) > 1000
+    # the surface is the ellipsoid's, not a surface of revolution: semi-axes 0.5 along x,
+    # 0.3 along y and z, to within the marching step (eps / 2) and the fit
+    x, y, z = surface.vertices.T
+    half = [np.ptp(c) / 2 for c in (x, y, z)]
+    assert np.allclose(half, (0.5, 0.3, 0.3), atol=0.02), half
+    plt.close(ax.figure)
+
+
+def test_cli_draws_a_checkpoint_with_harmonics_in_3d_only(tmp_path, run_plot):
+    ellipsoid_checkpoint(tmp_path / "ellipsoid.h5")
+    result = run_plot(tmp_path / "ellipsoid.h5", "--what", "field,3d", "--dpi", 60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == [str(tmp_path / "ellipsoid_3d.png")]
+    assert "has harmonics: no 'field' figure" in result.stderr
+    assert_picture(tmp_path / "ellipsoid_3d.png", min_bytes=5_000)

@@ -224,6 +224,27 @@ class _Shifted:
         return self.value[0] - self.c if i == 0 else self.value[i]
 
 
+def of_checkpoint(ckpt, beta=None):
+    """(phi_h, box, eps) of a checkpoint with harmonics. Not collective.
+    `beta`: the basis's locality at the nodes, if the caller has it
+    (`io.checkpoint.locality` otherwise)."""
+    layout = checkpoint.harmonic_set(ckpt.attrs, ckpt.phi.shape[1])
+    box, eps = ckpt.box, float(ckpt.attrs["eps"])
+    if beta is None:
+        beta = checkpoint.locality(ckpt.nodes, ckpt.attrs, ckpt.plane)
+    return (Harmonic3D.of(ckpt.nodes, ckpt.phi, layout.m, layout.sine, box, eps, beta,
+                          checkpoint.basis(ckpt.attrs)["cutoff"], ckpt.plane), box, eps)
+
+
+def level_surface(ckpt, step=None):
+    """The triangulated phi_h = 0 of a checkpoint with harmonics
+    (`analysis.surface.extract`, the marching step MARCH eps by default), for
+    pictures. Not collective."""
+    field_h, box, eps = of_checkpoint(ckpt)
+    step = step or MARCH * eps
+    return surface.extract(field_h, *_bounds(field_h, box, eps, step), step)
+
+
 def sample(nodes, phi, attrs, beta=None):
     """phi_h of nodal harmonics `phi` (N x nh, with their checkpoint
     attributes `attrs`) on the Cartesian grid of the box: x, y in [-Rb, Rb], z
@@ -242,13 +263,7 @@ def sample(nodes, phi, attrs, beta=None):
     origin, step : ndarray, shape (3,)
         (x, y, z) of the first point and the steps along x, y, z.
     """
-    ckpt = checkpoint.Checkpoint(nodes, phi, attrs)
-    layout = checkpoint.harmonic_set(attrs, phi.shape[1])
-    box, eps = ckpt.box, float(attrs["eps"])
-    if beta is None:
-        beta = checkpoint.locality(nodes, attrs, ckpt.plane)
-    field_h = Harmonic3D.of(nodes, phi, layout.m, layout.sine, box, eps, beta,
-                                    checkpoint.basis(attrs)["cutoff"], ckpt.plane)
+    field_h, box, eps = of_checkpoint(checkpoint.Checkpoint(nodes, phi, attrs), beta)
     origin = np.array([-box[0], -box[0], 0.0])
     lengths = np.array([2.0 * box[0], 2.0 * box[0], box[1]])
     counts = _sample_counts(lengths, SAMPLE_STEP * eps)

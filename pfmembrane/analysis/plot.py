@@ -15,7 +15,9 @@ they oscillate far outside [-1, 1] (-3.6 ... 6.1 on the dumbbell's P14 at
 eps 0.01, where phi_h stays within 1e-3 of it) and cross zero away from the
 membrane. Colour maps interpolate phi_h at the nodes linearly on their
 Delaunay triangulation; sections evaluate phi_h on the line; the membrane is
-the level set phi_h = 0 (`pfmembrane.analysis.levelset.level_set`).
+the level set phi_h = 0 (`pfmembrane.analysis.levelset.level_set`). A
+checkpoint with azimuthal harmonics is drawn in 3D only (its triangulated
+phi_h = 0, `pfmembrane.analysis.field3d.level_surface`) and by its spacing.
 """
 
 import argparse
@@ -28,7 +30,7 @@ import matplotlib.tri as mtri
 import numpy as np
 
 from pfmembrane.io import checkpoint
-from pfmembrane.analysis import levelset
+from pfmembrane.analysis import field3d, levelset
 from pfmembrane.kernels.nodes import nodal_spacing
 
 __all__ = ["FIGURES", "readable", "triangulation",
@@ -165,8 +167,9 @@ def plot_section(ckpts, ax=None, z_mid=None, samples=400):
 
 
 def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
-    """Draw the membrane as the surface of revolution of phi_h = 0 about the
-    z axis.
+    """Draw the membrane: the surface of revolution of phi_h = 0 about the
+    z axis, or with harmonics the triangulated 3D surface phi_h = 0
+    (`field3d.level_surface`).
 
     Not collective.
 
@@ -186,12 +189,19 @@ def plot_3d(ckpt, ax=None, n_theta=48, curve=None):
     """
     if ax is None:
         ax = plt.figure().add_subplot(projection="3d")
-    theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
-    for line in levelset.membrane(ckpt) if curve is None else curve:
-        r, z = line[:, :1], line[:, 1:]
-        ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
-                        np.broadcast_to(z, (len(z), n_theta)),
-                        color="tab:orange", linewidth=0)
+    if np.ndim(ckpt.phi) == 2:
+        surf = field3d.level_surface(ckpt)
+        if len(surf.triangles):
+            x, y, z = surf.vertices.T
+            ax.plot_trisurf(x, y, z, triangles=surf.triangles, color="tab:orange",
+                            linewidth=0)
+    else:
+        theta = np.linspace(0.0, 2.0 * np.pi, n_theta)
+        for line in levelset.membrane(ckpt) if curve is None else curve:
+            r, z = line[:, :1], line[:, 1:]
+            ax.plot_surface(r * np.cos(theta), r * np.sin(theta),
+                            np.broadcast_to(z, (len(z), n_theta)),
+                            color="tab:orange", linewidth=0)
     rb, zb = ckpt.box
     ax.set_xlim(-rb, rb)
     ax.set_ylim(-rb, rb)
@@ -264,11 +274,19 @@ def main(argv=None):
         "spacing": plot_spacing,
     }
     for what in args.what:
-        if what == "section":
-            ax = plot_section(ckpts, z_mid=args.z_mid)
-            _save(ax.figure, args.checkpoints[0], what, args)
+        # phi_h(r, z) alone is a section of an axisymmetric field only
+        meridian = [(path, ckpt) for path, ckpt in zip(args.checkpoints, ckpts)
+                    if np.ndim(ckpt.phi) == 1 or what in ("3d", "spacing")]
+        drawn = {path for path, _ in meridian}
+        for path in args.checkpoints:
+            if path not in drawn:
+                print(f"pfmembrane.analysis.plot: {path} has harmonics: no '{what}' figure "
+                      "(the '3d' one draws its phi_h = 0)", file=sys.stderr)
+        if what == "section" and meridian:
+            ax = plot_section([ckpt for _, ckpt in meridian], z_mid=args.z_mid)
+            _save(ax.figure, meridian[0][0], what, args)
             continue
-        for path, ckpt in zip(args.checkpoints, ckpts):
+        for path, ckpt in meridian:
             _save(draw[what](ckpt).figure, path, what, args)
     return 0
 

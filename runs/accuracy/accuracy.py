@@ -73,9 +73,7 @@ def main(argv=None):
               "solver's (R 0.4). Wall: the child process, start-up included.", '']
     lines += report.table(['scene', 'run', 'wall s', 'estimate', 'bar', 'sharp',
                            'true error', 'bar / true error', 'tol reached', 'eps', 'nodes'], rows)
-    with open(os.path.join(out, 'tol.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
-    print(os.path.join(out, 'tol.md'))
+    print(report.write(os.path.join(out, 'tol.md'), lines))
     return 0
 
 

@@ -95,8 +95,7 @@ def main(argv=None):
                                'bar', 'bar / E', 'sharp', 'true error', 'bar / true error',
                                'tol reached', 'eps', 'nodes', 'stop', 'hand: eps (nodes)',
                                'hand wall s', 'hand estimate +- bar', 'wall / hand wall'], rows)
-        with open(os.path.join(out, args.page), 'w') as f:
-            f.write('\n'.join(lines) + '\n')
+        report.write(os.path.join(out, args.page), lines)
 
     for tol in tols:
         for name, scene, family, v in CASES:

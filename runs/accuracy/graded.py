@@ -73,9 +73,7 @@ def main(argv=None):
                   "own energy against the sharp solver's.", '']
         lines += report.table(['c0', 'eps', 'grid', 'nodes', 'eps_min', 'set-up s', 'wall s',
                                'E', 'level set', 'error vs sharp', 'solve'], rows)
-        with open(os.path.join(args.out, 'graded.md'), 'w') as f:
-            f.write('\n'.join(lines) + '\n')
-        print(os.path.join(args.out, 'graded.md'))
+        print(report.write(os.path.join(args.out, 'graded.md'), lines))
     return 0
 
 

@@ -114,8 +114,7 @@ def main(argv=None):
                   '(and a failure\'s '
                   'last stderr line).', '']
         lines += printed
-        with open(os.path.join(out, args.page), 'w') as f:
-            f.write('\n'.join(lines) + '\n')
+        report.write(os.path.join(out, args.page), lines)
 
     for name, stem, base, branch, v, c0, family in CASES:
         if args.only and args.only not in name:

@@ -387,8 +387,7 @@ def write(branches, args, out, wall, record=None):
                   f"{b['nodes']} nodes (eps_min {b['eps_min']:.4g}); {len(pts)} points in "
                   f"{b['time']:.1f} s; median step {median_step(b):.2f} s. "
                   f"Ends: {'; '.join(b['ends']) or 'none'}.\n"] + table(b)
-    with open(os.path.join(out, 'branches.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(os.path.join(out, 'branches.md'), lines)
     points = sum(len(b['points']) for b in branches)
     computed = sum(b['time'] for b in branches)
     footer = (f"{points} points on {len(branches)} branches: {computed:.0f} s of branch "

@@ -221,8 +221,7 @@ def basis(args):
              BASIS_COLUMNS, _rule(BASIS_COLUMNS)]
     lines += [basis_row(r) for r in results]
     path = os.path.join(args.out, 'basis.md')
-    with open(path, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(path, lines)
     _write_json(os.path.join(args.out, 'basis.json'), {'provenance': record, 'results': results})
     print(path)
 

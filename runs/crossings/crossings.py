@@ -28,7 +28,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from pfmembrane import series
+from pfmembrane import report, series
 from pfmembrane.analysis.sizing import required_box, rounded_up
 from pfmembrane.paper import SCENE, paper_spacing
 from pfmembrane.report import header, iterations, provenance
@@ -222,8 +222,7 @@ def write(sharp_rows, series, args, wall, out, record=None):
                      f"| {level - published:+.4f} "
                      f"| {phase_field_crossing(name, series, 'energy'):.4f} "
                      f"| {phase_field_crossing(name, series, 'sharp_energy'):.6f} |")
-    with open(os.path.join(out, 'notes.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(os.path.join(out, 'notes.md'), lines)
 
 
 def main(argv=None):

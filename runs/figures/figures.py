@@ -84,9 +84,7 @@ class Index:
             lines += ['', '## Notes', ''] + [f"- {n}" for n in self.notes]
         path = os.path.join(self.out, 'index.md')
         os.makedirs(self.out, exist_ok=True)
-        with open(path, 'w') as f:
-            f.write('\n'.join(lines) + '\n')
-        print(path)
+        print(report.write(path, lines))
         return path
 
 

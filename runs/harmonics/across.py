@@ -93,8 +93,7 @@ def write(args, record, rows, axis):
     lines += report.table(['v', 'J', 'E', 'E / E_axi - 1', 'level-set E (3D)', 'topology',
                            'half-lengths (nodes with phi > 0)', 'wall s',
                            'Newton its (stage 1/2)'], rows)
-    with open(args.out, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(args.out, lines)
 
 
 if __name__ == '__main__':

@@ -69,8 +69,7 @@ def write(args, record, times, last):
     lines += report.table(['solve', 'converged', 'E', 'wall s (each run)', 'wall / axisymmetric',
                            'stage 1 / 2 s', 'Newton its (stage 1 / 2)',
                            'Krylov its per Newton step', 'peak MB'], rows)
-    with open(args.out, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(args.out, lines)
     print('\n'.join(lines))
 
 

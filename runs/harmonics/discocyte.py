@@ -87,8 +87,7 @@ def write(args, record, axi, t_axi, lowest, runs):
               "and augmented-Lagrangian row, then every stage-2 iteration; the constraints "
               "hold only at the end, so E alone need not fall):", '',
               '    ' + ' '.join(f"{e:.8f}" for e in r.attrs['energy_history']), '']
-    with open(args.out, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(args.out, lines)
     print('\n'.join(lines))
 
 

@@ -91,8 +91,7 @@ def write(args, record, rows):
     lines += report.table(['v', 'E oblate', 'lambda_3', 'start', 'E three-fold',
                            'E3 - E oblate', 'max |psi_3|', 'level-set E (3D)', 'topology', 'index',
                            'Newton its', 'wall s'], rows)
-    with open(args.out, 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(args.out, lines)
 
 
 if __name__ == '__main__':

@@ -53,9 +53,7 @@ def main(argv=None):
               "doubled until two fits agree to 1e-5, at most 512 and M / 4).", '']
     lines += report.table(['c0', 'smallest feature', 'M', 'sharp E', '48 modes', 'error',
                            'modes doubled', 'error'], rows)
-    with open(os.path.join(args.out, 'narrow_necks.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
-    print(os.path.join(args.out, 'narrow_necks.md'))
+    print(report.write(os.path.join(args.out, 'narrow_necks.md'), lines))
     return 0
 
 

@@ -138,8 +138,7 @@ def write(results, args, out, record):
         lines += [f"\n## {s['name']}: the {s['branch']} branch, {SERIES[s['name']][1]} "
                   f"followed\n", f"Box {s['box'][0]:g} x {s['box'][1]:g}, {s['nodes']} nodes.\n",
                   HEADER, '|' + '---|' * (HEADER.count('|') - 1)] + [row(r) for r in s['rows']]
-    with open(os.path.join(out, 'branches.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(os.path.join(out, 'branches.md'), lines)
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

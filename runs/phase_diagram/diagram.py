@@ -379,8 +379,7 @@ def page(args, record, sharps, points, wall):
               ' '.join(str(n) for n in p.get('nodes', [])) or '-', f"{p['wall']:.1f}",
               '-' if resolved(p) else why(p)]
              for p in sorted(mine, key=lambda p: (p['v'], p['family']))])
-    with open(os.path.join(args.out, 'diagram.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
+    report.write(os.path.join(args.out, 'diagram.md'), lines)
     figure(os.path.join(args.out, 'diagram.png'), sharps, points, found)
 
 
