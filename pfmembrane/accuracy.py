@@ -216,10 +216,9 @@ def next_eps(steps, ratio, eps0, sharp=None, fraction=FRACTION):
 
 def _reference_feature(steps, sharp):
     """(size, kind) of the last usable step's level-set feature, else of the sharp start.
-    A feature within FOLLOWS_WIDTH eps of its step is no measure of the shape (held at the
-    interface: the oblate at c0 1.5, v 0.55 had a gap of about eps at eps 0.0283, an eighth
-    of which gave a step of 16,644 nodes that took 458 s, runs/phase_diagram/points.json)
-    and is passed over."""
+    A feature within FOLLOWS_WIDTH eps of its step is held at the interface, no measure of
+    the shape, and is passed over: a fraction of it would jump to an eps far finer than the
+    shape needs."""
     for s in reversed(steps):
         if s.usable and math.isfinite(s.feature) and s.feature > FOLLOWS_WIDTH * s.eps:
             return s.feature, s.feature_kind or 'feature'

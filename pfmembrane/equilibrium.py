@@ -201,8 +201,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
         attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
                      dihedral=scene.dihedral)
         if converged and checks:
-            attrs.update(surface_checks(mpi, grid.nodes, phi, attrs, grid.discrete.beta,
-                                        grid.plane))
+            attrs.update(surface_checks(mpi, grid.nodes, phi, attrs, grid.discrete.beta))
     elif converged and checks:  # an interrupted run checkpoints at once
         attrs.update(phase_field_checks(mpi, grid.nodes, phi, attrs))
     return Result(grid.nodes, phi, attrs, grid=grid, message=message, status=status,

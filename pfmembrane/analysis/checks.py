@@ -68,7 +68,7 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     return mpi.bcast(result, root=0)
 
 
-def surface_checks(mpi, xy, phi, attrs, beta, plane=None):
+def surface_checks(mpi, xy, phi, attrs, beta):
     """The checks of a field with harmonics, from its 3D level set phi_h = 0
     (`analysis.field3d`): ``components``, ``genus`` (the sum over the
     components, from their Euler characteristics), ``topology`` ('1 sphere',
@@ -80,10 +80,7 @@ def surface_checks(mpi, xy, phi, attrs, beta, plane=None):
     ``level_set_step`` (the finer marching step). Rank 0 computes."""
     result = {}
     if mpi.Get_rank() == 0:
-        box, eps = tuple(attrs['box']), float(attrs['eps'])
-        layout = checkpoint.harmonic_set(attrs, phi.shape[1])
-        field = field3d.Harmonic3D.of(xy, phi, layout.m, layout.sine, box, eps, beta,
-                                      float(attrs['cutoff']), plane)
+        field, box, eps = field3d.of_checkpoint(checkpoint.Checkpoint(xy, phi, attrs), beta)
         m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']),
                             field3d.MARCH * eps / 2)
         _, energy, bar, level = field3d.projected(field, box, eps, float(attrs['k']),

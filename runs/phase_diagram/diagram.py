@@ -25,7 +25,7 @@ next point nobody holds, the longest first (by an earlier points.json's walls), 
 end together. The points are small, so two ranks on one point run well short of twice as
 fast as one: two points side by side end more points an hour than one point on two ranks.
 
-Every point is kept in points.json the moment it ends (under a lock on points.lock: the
+Every point is kept in points.json the moment it ends (under a lock on points.json.lock: the
 ranks share one machine) and a later call with the same commit, TOL, budget, node cap and
 number of workers goes on from them (--fresh: start over); the page (diagram.md, with
 provenance) and the figure (diagram.png) are written at the end, or from points.json alone
@@ -385,7 +385,7 @@ def page(args, record, sharps, points, wall):
 
 class Store:
     """points.json, shared by the workers (one machine): the points done and the points
-    claimed, read and rewritten under an exclusive lock on points.lock, so each worker takes
+    claimed, read and rewritten under an exclusive lock on points.json.lock, so each worker takes
     the next point nobody holds and a point is kept the moment it ends."""
 
     def __init__(self, path, key, record):
@@ -412,22 +412,26 @@ class Store:
         os.replace(self.path + '.new', self.path)
 
     def start(self, fresh):
-        """Keep the points of an earlier call with the same key unless `fresh`; no claims."""
+        """Keep the points of an earlier call with the same key unless `fresh`; no claims.
+        Returns the walls of the points found, at any key ({ident: s}: `schedule`'s)."""
         with self.locked() as kept:
+            prior = {ident(p): p['wall'] for p in kept['points']}
             if fresh or kept.get('key') != self.key:
                 kept = {'key': self.key, 'record': self.record, 'points': []}
             kept['claimed'] = []
             self._write(kept)
+        return prior
 
     def claim(self, todo):
         """The first of `todo` neither done nor claimed, now claimed; None when none is."""
         with self.locked() as kept:
             taken = {ident(p) for p in kept['points'] + kept['claimed']}
-            for c0, v, family, tol, budget in todo:
-                if ident({'c0': c0, 'v': v, 'family': family}) not in taken:
+            for task in todo:
+                c0, v, family = task[:3]
+                if (c0, round(v, 4), family) not in taken:
                     kept['claimed'].append({'c0': c0, 'v': v, 'family': family})
                     self._write(kept)
-                    return c0, v, family, tol, budget
+                    return task
         return None
 
     def add(self, p):
@@ -436,8 +440,16 @@ class Store:
             kept['claimed'] = [c for c in kept['claimed'] if ident(c) != ident(p)]
             self._write(kept)
 
+    def finish(self, elapsed):
+        """Add this call's `elapsed` s to the calls' total; returns what is kept."""
+        with self.locked() as kept:
+            kept['elapsed'] = kept.get('elapsed', 0.0) + elapsed
+            self._write(kept)
+        return kept
+
 
 def ident(p):
+    """A point's name, (c0, v, family), from its record."""
     return p['c0'], round(p['v'], 4), p['family']
 
 
@@ -446,8 +458,7 @@ def schedule(sharps, args, prior):
     earlier points.json at any commit, else its budget), so the workers end together."""
     todo = [(sharp.c0, v, family, tol, budget) for sharp in sharps
             for v, family, tol, budget in row_points(sharp, args.tol, args.budget)]
-    return sorted(todo, key=lambda t: -prior.get(ident({'c0': t[0], 'v': t[1], 'family': t[2]}),
-                                                 t[4]))
+    return sorted(todo, key=lambda t: -prior.get((t[0], round(t[1], 4), t[2]), t[4]))
 
 
 def main(argv=None):
@@ -481,13 +492,7 @@ def main(argv=None):
     record = world.bcast(record)
     store = Store(path, {'commit': record['commit'], 'tol': args.tol, 'budget': args.budget,
                          'max_nodes': args.max_nodes, 'workers': args.workers}, record)
-    prior = {}
-    if rank == 0:
-        if os.path.exists(path):
-            with open(path) as f:
-                prior = {ident(p): p['wall'] for p in json.load(f).get('points', [])}
-        store.start(args.fresh)
-    prior = world.bcast(prior)
+    prior = world.bcast(store.start(args.fresh) if rank == 0 else None)
     todo = schedule(sharps, args, prior)
     t0 = time.perf_counter()
     while (task := store.claim(todo)) is not None:
@@ -501,10 +506,8 @@ def main(argv=None):
               f"{p['state']} ({100 * p['relative']:+.3f}%), {p['wall']:.1f} s", flush=True)
     elapsed = world.allreduce(time.perf_counter() - t0, op=MPI.MAX)
     if rank == 0:
-        with store.locked() as kept:
-            kept['elapsed'] = kept.get('elapsed', 0.0) + elapsed  # every call on these points
-            store._write(kept)
-        page(args, kept['record'], sharps, kept['points'], elapsed)
+        kept = store.finish(elapsed)
+        page(args, kept['record'], sharps, kept['points'], kept['elapsed'])
         print(os.path.join(args.out, 'diagram.md'))
     return 0
 
