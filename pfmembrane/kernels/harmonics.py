@@ -18,6 +18,15 @@ The derivatives of r^m chi T follow from those of chi (`kernels.azimuthal`):
     (1/r) d/dtheta = r^(m-1) chi T',
     Lap   = (r^m Lap chi + 2 m r^(m-1) chi_r) T   (Lap chi: the axisymmetric one).
 
+The unknowns. A harmonic's coefficient chi_a meets r^m over its basis
+function's support: near the axis its whole effect is of order (h/R)^m,
+1e-30 for m = 12 a few nodes off the axis, and those rows of H_m vanish to
+rounding, so a factorization of the mode Hessians or a Krylov solve on them
+breaks down. The unknowns are therefore x_aj = chi_aj rho_a^m_j (`unknown_scale`:
+rho_a = sqrt(r_a^2 + h_a^2), the node's radius, its spacing on the axis), each
+about the size of psi near its node; every map here takes and returns x
+(chi = s x, gradients s grad_chi, Hessians S H S with s = rho^-m).
+
 Integrals in theta. The operators' weights w already integrate 2 pi r, so a 3D
 integral is sum_q w_q times the mean over theta. The integrands are
 trigonometric polynomials: W holds phi^3 (harmonics up to 3 J n), W^2 and the
@@ -60,17 +69,26 @@ class Harmonics:
         return [('s' if s else 'c') + str(m) for m, s in zip(self.m, self.sine)]
 
 
+def unknown_scale(nodes, h, harmonics):
+    """s_aj = rho_a^-m_j, rho_a = sqrt(r_a^2 + h_a^2) (nodes x harmonics):
+    chi = s x, x the solver's unknowns (module docstring)."""
+    rho = np.sqrt(nodes[:, 0] ** 2 + np.asarray(h) ** 2)
+    return rho[:, None] ** -harmonics.m[None, :].astype(float)
+
+
 class HarmonicForms:
     """E, A, V, M of a field with harmonics `harmonics` on one grid's local
     operators: values, gradients and Hessian-vector products.
 
-    Not collective. A field is a local array chi of shape (nlocal, nh), ghosts
-    included; the Dirichlet value -1 belongs to the axisymmetric harmonic (the
-    operators' offsets b0 ... enter it alone), the others vanish there.
+    Not collective. A field is a local array x of shape (nlocal, nh), ghosts
+    included: the unknowns chi / `scale` (`unknown_scale` of the local nodes;
+    1 without); the Dirichlet value -1 belongs to the axisymmetric harmonic
+    (the operators' offsets b0 ... enter it alone), the others vanish there.
     """
 
-    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None, coupled=False):
+    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None, coupled=False, scale=None):
         self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
+        self.scale = np.ones((ops.B0.shape[1], len(harmonics))) if scale is None else scale
         self.coupled = coupled   # `hessian` and `pattern`: the exact coupled Hessian
         self._gram = gram
         self._BT = None
@@ -82,8 +100,9 @@ class HarmonicForms:
         self.w = ops.w[:, None]
         nh = len(harmonics)
         mean_T = harmonics.T.mean(axis=0)                  # 1 for cos 0, else 0 (exactly)
-        self.grad_V = 0.5 * (ops.B0.T @ (self.w * self.R * mean_T)).ravel()
-        self.grad_M = (ops.B0.T @ (self.w * self.R * mean_T * (ops.z - zc)[:, None])).ravel()
+        self.grad_V = (0.5 * self.scale * (ops.B0.T @ (self.w * self.R * mean_T))).ravel()
+        self.grad_M = (self.scale * (ops.B0.T @ (self.w * self.R * mean_T
+                                                 * (ops.z - zc)[:, None]))).ravel()
         self.shape = (ops.B0.shape[1], nh)
         self._interleaved = self._coupled = self._E = None
 
@@ -92,12 +111,11 @@ class HarmonicForms:
         o = self.ops
         return o.B0 @ chi, o.Br @ chi, o.Bz @ chi, o.BL @ chi
 
-    def fields(self, chi, offsets=True):
-        """u, u_r, u_z, (1/r) u_theta, Lap u at the quadrature points x theta
-        points, each (nq, n_theta); without `offsets` (a direction) no
-        Dirichlet part."""
-        chi = np.reshape(chi, self.shape)
-        c, cr, cz, cl = self._coefficients(chi)
+    def fields(self, x, offsets=True):
+        """u, u_r, u_z, (1/r) u_theta, Lap u of the unknowns x at the quadrature
+        points x theta points, each (nq, n_theta); without `offsets` (a
+        direction) no Dirichlet part."""
+        c, cr, cz, cl = self._coefficients(self.scale * np.reshape(x, self.shape))
         T, dT, R, dR = self.h.T.T, self.h.dT.T, self.R, self.dR
         u = (R * c) @ T
         ur = (R * cr + dR * c) @ T
@@ -139,7 +157,7 @@ class HarmonicForms:
             given = [c * P for c, P in pairs if P is not None]
             if given:
                 out = out + self._BT[name] @ (w * sum(given))
-        return out
+        return self.scale * out
 
     # -- functionals ---------------------------------------------------------------
     def _integrals(self, u, ur, uz, ut, W):
@@ -151,14 +169,14 @@ class HarmonicForms:
                                     + (u * u - 1.0) ** 2 / (4 * eps)),
                          0.5 * mean(u), mean(u * (self.ops.z - self.zc)[:, None])])
 
-    def values(self, chi):
+    def values(self, x):
         """Local parts of (E, A, V - |Omega|/2, M)."""
-        u, ur, uz, ut, lap = self.fields(chi)
+        u, ur, uz, ut, lap = self.fields(x)
         return self._integrals(u, ur, uz, ut, self._W(u, lap)[0])
 
-    def gradients(self, chi):
-        """Local values and the gradients of E and A (flat, as chi)."""
-        u, ur, uz, ut, lap = self.fields(chi)
+    def gradients(self, x):
+        """Local values and the gradients of E and A (flat, as x)."""
+        u, ur, uz, ut, lap = self.fields(x)
         W, dW, _ = self._W(u, lap)
         eps, cE = self.eps, F_E * self.k / (2 * self.eps)
         p = self._project
@@ -168,25 +186,25 @@ class HarmonicForms:
                            t=a * p(ut, True))
         return self._integrals(u, ur, uz, ut, W), gE.ravel(), gA.ravel()
 
-    def _second_variation(self, chi, sigma):
-        """The coefficients of the second variation of E - sigma A at chi, per
+    def _second_variation(self, x, sigma):
+        """The coefficients of the second variation of E - sigma A at x, per
         quadrature point and theta point: (K_uu, K_ul, K_ll, K_grad) of
 
             K_uu du^2 + 2 K_ul du dLap + K_ll dLap^2 + K_grad |grad du|^2,
 
         from E's (eps Lap u + W(u))^2 / eps and A's double well and gradient;
         K_ll and K_grad are constants."""
-        u, _, _, _, lap = self.fields(chi)
+        u, _, _, _, lap = self.fields(x)
         W, dW, d2W = self._W(u, lap)
         eps, c = self.eps, F_E * self.k / self.eps       # c = 2 cE
         return (c * (dW * dW + W * d2W) - sigma * F_A * (3 * u * u - 1.0) / eps,
                 c * eps * dW, c * eps * eps, -sigma * F_A * eps)
 
-    def linearization(self, chi, sigma):
-        """v -> (Hess E - sigma Hess A) v at chi (local contributions, flat; V
+    def linearization(self, x, sigma):
+        """v -> (Hess E - sigma Hess A) v at x (local contributions, flat; V
         and M are linear): the state's coefficients computed once for every
         product of a Krylov solve, the coupled Hessian never formed."""
-        uu, ul, ll, grad = self._second_variation(chi, sigma)
+        uu, ul, ll, grad = self._second_variation(x, sigma)
         p = self._project
 
         def action(v):
@@ -195,8 +213,8 @@ class HarmonicForms:
                                  t=grad * p(dut, True), lap=p(ul * du + ll * dlap)).ravel()
         return action
 
-    def coupled_hessian(self, chi, sigma):
-        """The exact local Hessian of E - sigma A at chi, every pair of
+    def coupled_hessian(self, x, sigma):
+        """The exact local Hessian of E - sigma A at x, every pair of
         harmonics coupled (CSR on `coupled_pattern`): the form of
         `linearization` assembled, sum over the field pairs (f, g) of
         E_f^j^T diag(w mean_theta(K_fg tau_f^j tau_g^k)) E_g^k, with E_f^j
@@ -204,7 +222,7 @@ class HarmonicForms:
         T_j (T_j' for u_theta / r). nh^2 times the axisymmetric Hessian's
         entries: for a factorization that must be exact (an index,
         `parallel.harmonic`), not for the Krylov solves."""
-        uu, ul, ll, grad = self._second_variation(chi, sigma)
+        uu, ul, ll, grad = self._second_variation(x, sigma)
         pairs = (('u', 'u', uu), ('u', 'l', ul), ('l', 'u', ul), ('l', 'l', ll),
                  ('r', 'r', grad), ('z', 'z', grad), ('t', 't', grad))
         o, h, nh = self.ops, self.h, len(self.h)
@@ -235,7 +253,14 @@ class HarmonicForms:
         H.sort_indices()
         if H.nnz != P.nnz:
             raise RuntimeError("the coupled Hessian leaves its pattern")
-        return H
+        return self._scaled(H)
+
+    def _scaled(self, K):
+        """S K S for a local matrix K in chi (interleaved, nh a + j): K in x."""
+        s = self.scale.ravel()
+        rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+        K.data *= s[rows] * s[K.indices]
+        return K
 
     def _field_operators(self):
         """Per harmonic j the sparse maps chi_j -> (u, u_r, u_z, u_theta / r,
@@ -261,9 +286,9 @@ class HarmonicForms:
                 (np.zeros(K.nnz), K.indices, K.indptr), shape=K.shape)
         return self._coupled
 
-    def max_abs(self, chi):
+    def max_abs(self, x):
         """max |phi_h| over the local quadrature points and theta points."""
-        return float(np.abs(self.fields(chi)[0]).max(initial=0.0))
+        return float(np.abs(self.fields(x)[0]).max(initial=0.0))
 
     # -- the block-diagonal Hessian --------------------------------------------------
     def pattern(self):
@@ -290,20 +315,20 @@ class HarmonicForms:
             self._interleaved = (K, where)
         return self._interleaved
 
-    def hessian(self, chi, sigma):
+    def hessian(self, x, sigma):
         """Local block-diagonal Hessian diag(H_m) of the theta-averaged state
         chi_0 (`azimuthal.ModeForms`, sines and cosines of one m sharing H_m),
         on `pattern`: at an axisymmetric state the exact Hessian of
         E - sigma A, elsewhere the Krylov solver's preconditioner; with
         `coupled` the exact one (`coupled_hessian`)."""
         if self.coupled:
-            return self.coupled_hessian(chi, sigma)
+            return self.coupled_hessian(x, sigma)
         gram = self._gram()
-        chi = np.reshape(chi, self.shape)
-        forms = ModeForms(self.ops, gram, gram.blocks(OPERATORS), chi[:, 0], self.eps, self.k,
+        chi0 = np.reshape(x, self.shape)[:, 0]  # the scale of m = 0 is 1
+        forms = ModeForms(self.ops, gram, gram.blocks(OPERATORS), chi0, self.eps, self.k,
                           self.c0, sigma, self.zc)
         blocks = {m: forms.hessian(m).data for m in np.unique(self.h.m)}
         K, where = self._interleave()
         K = K.copy()
         K.data[where] = np.column_stack([blocks[m] for m in self.h.m])
-        return K
+        return self._scaled(K)

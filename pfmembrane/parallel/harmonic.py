@@ -2,7 +2,8 @@
 
 The unknowns are the harmonics' free nodal values, interleaved node by node
 (nh a + j), so each rank owns the harmonics of its own nodes and one ghost
-scatter moves all of them. The bordered matrix holds the block-diagonal
+scatter moves all of them; each scaled by rho_a^m (`kernels.harmonics`), which
+`vec` and `nodal` apply and undo. The bordered matrix holds the block-diagonal
 Hessian diag(H_m) of the theta-averaged state: stage 1's Newton steps use it
 as a model Hessian (the line search and the inertia check keep them descent
 steps), stage 2 as the preconditioner of a Krylov solver whose operator is
@@ -12,7 +13,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from pfmembrane.kernels.harmonics import HarmonicForms
+from pfmembrane.kernels.harmonics import HarmonicForms, unknown_scale
 from pfmembrane.parallel.assembly import Assembly
 
 
@@ -20,11 +21,12 @@ class Interleaved:
     """A `partition.Layout`'s numbering with nh unknowns per free node.
 
     Collective. The same owned ranges, scaled by nh; local arrays reshape to
-    (nodes, nh).
+    (nodes, nh). `scale` (nodes x nh): chi = scale x, x the unknowns.
     """
 
-    def __init__(self, layout, nh):
-        self.base, self.nh, self.comm = layout, nh, layout.comm
+    def __init__(self, layout, scale):
+        self.base, self.scale, self.comm = layout, scale, layout.comm
+        self.nh = nh = scale.shape[1]
         self.start, self.nowned, self.nglobal = nh * layout.start, nh * layout.nowned, \
             nh * layout.nglobal
         self.ghosts = self._expand(layout.ghosts)
@@ -41,11 +43,16 @@ class Interleaved:
         return PETSc.Vec().createGhost(self.ghosts.astype(PETSc.IntType),
                                        size=(self.nowned, self.nglobal), comm=self.comm)
 
+    def local_scale(self):
+        """`scale` at the local unknowns (owned, then ghosts): (nlocal / nh, nh)."""
+        return self.scale[self.base.order[self.base.local_numbers]]
+
     def vec(self, phi):
         """The Vec of nodal harmonics `phi` (nodes x nh, every node)."""
         b = self.base
         x = self.create_vec()
-        x.setArray(np.asarray(phi)[b.order[b.start:b.start + b.nowned]].ravel())
+        owned = b.order[b.start:b.start + b.nowned]
+        x.setArray((np.asarray(phi)[owned] / self.scale[owned]).ravel())
         return x
 
     def nodal(self, x, fill=-1.0):
@@ -58,7 +65,12 @@ class Interleaved:
             part.setArray(x.getArray(readonly=True)[j::nh])
             out.append(b.nodal(part, fill if j == 0 else 0.0))
         part.destroy()
-        return np.column_stack(out)
+        # the Dirichlet nodes' fill is chi's (there the unknowns are not free)
+        free = np.zeros(len(b.number), dtype=bool)
+        free[b.order] = True
+        phi = np.column_stack(out)
+        phi[free] *= self.scale[free]
+        return phi
 
 
 class HarmonicAssembly(Assembly):
@@ -72,8 +84,9 @@ class HarmonicAssembly(Assembly):
     def __init__(self, grid, eps, k, c0, targets, zc, harmonics, coupled=False):
         if grid.plane is not None and np.any(harmonics.sine):
             raise ValueError("sines with a half box: not supported")
-        layout = Interleaved(grid.layout, len(harmonics))
-        forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram, coupled)
+        layout = Interleaved(grid.layout, unknown_scale(grid.nodes, grid.h, harmonics))
+        forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram, coupled,
+                              layout.local_scale())
         self.harmonics, self.krylov = harmonics, not coupled
         super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
         self._state = None
