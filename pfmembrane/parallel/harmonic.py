@@ -44,7 +44,7 @@ class Interleaved:
                                        size=(self.nowned, self.nglobal), comm=self.comm)
 
     def local_scale(self):
-        """`scale` at the local unknowns (owned, then ghosts): (nlocal / nh, nh)."""
+        """`scale` at the local nodes (owned, then ghosts), one row per node."""
         return self.scale[self.base.order[self.base.local_numbers]]
 
     def vec(self, phi):
