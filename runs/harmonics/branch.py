@@ -4,7 +4,7 @@ solved with the harmonics m = 0, 3, ..., 3J; threefold.py's scene), `pf.continua
 the reduced volume with the exact coupled Hessian factored (-pf_hessian coupled: the
 corrector's Newton steps and the index from its inertia), towards the bifurcation off the
 oblate near v 0.9514 (ds > 0) and away from it (ds < 0). At every point: E against the
-oblate's at the same v (solved from the last one's), the amplitude max |psi_3| and the index
+oblate's at the same v (solved from the last one's), the signed amplitude of psi_3 and the index
 within the harmonics. A supercritical pitchfork's branch ends on the oblate at the
 bifurcation with amplitude ~ sqrt(v_b - v) and index 0; a subcritical one turns back at a
 fold, unstable (index 1) between it and the bifurcation. Under mpiexec; written to
@@ -66,10 +66,11 @@ def main(argv=None):
 def row(grid, r, oblate, how, seconds):
     """A table row of the three-fold state `r` beside the `oblate` at its v."""
     a = r.attrs
-    amplitude = np.abs(grid.nodes[:, 0] ** 3 * r.phi[:, 1]).max()
+    psi3 = grid.nodes[:, 0] ** 3 * r.phi[:, 1]
+    amplitude = psi3[np.argmax(np.abs(psi3))]   # signed: psi_3 -> -psi_3 is a turn by pi/3
     index = a.get('index_0', a.get('index_harmonics', -1))
     return [how, f"{a['reduced_volume']:.5f}", f"{r.energy:.8f}", f"{oblate.energy:.8f}",
-            f"{r.energy - oblate.energy:.3e}", f"{amplitude:.4f}",
+            f"{r.energy - oblate.energy:.3e}", f"{amplitude:+.4f}",
             '-' if index is None or index < 0 else index, int(a.get('fold', 0)),
             a.get('stage2_iterations', '-'), f"{seconds:.1f}"]
 
@@ -82,13 +83,14 @@ def write(args, record, rows):
               f"Then `pf.continuation(start, 'reduced_volume', ds, {args.steps}, "
               "options={'pf_hessian': 'coupled'})` for ds = "
               f"+{args.ds:g} and -{args.ds:g} (arclength in the RMS of the unknowns and v). "
-              "E oblate: the axisymmetric solve at the point's v. max |psi_3|: the largest "
-              "r^3 |chi_3| at a node. index: negative eigenvalues within the harmonics on the "
+              "E oblate: the axisymmetric solve at the point's v. psi_3: r^3 chi_3 at the node "
+              "where its magnitude is largest (its sign flips where the branch passes the "
+              "oblate onto its copy turned by pi/3). index: negative eigenvalues within the harmonics on the "
               "constraints' tangent space (the coupled factorization's inertia; the start's "
               "from the continuation's first tangent). fold: dv/ds changed sign. Newton: the "
               "corrector's factorizations. s: the point's wall time with its oblate solve.", '']
     lines += report.table(['point', 'v', 'E three-fold', 'E oblate', 'E3 - E oblate',
-                           'max |psi_3|', 'index', 'fold', 'Newton', 's'], rows)
+                           'psi_3', 'index', 'fold', 'Newton', 's'], rows)
     report.write(args.out, lines)
 
 

@@ -35,14 +35,20 @@ def test_an_axisymmetric_state_stays_with_its_energy(axisymmetric):
     assert list(r.attrs['harmonics']) == [0, 2]
 
 
-def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric):
+@pytest.fixture(scope='module')
+def pushed(axisymmetric):
+    """A fresh solve with m = 0, 2, 4: the axisymmetric scene solved, then pushed
+    along m = 2 alone."""
+    grid, _ = axisymmetric
+    return pf.solve(dataclasses.replace(SCENE, harmonics=2, dihedral=2), grid, EPS, checks=True)
+
+
+def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric, pushed):
     grid, axi = axisymmetric
     # the discocyte's m = 2 instability, as on the paper's grid at eps 0.04; m = 4 stable
     lowest = [s.eigenvalues[0] for s in pf.stability(axi, modes=4, nev=2)]
     assert lowest[2] < 0 < lowest[4]
-    # a fresh start solves the axisymmetric scene, then pushes along m = 2 alone
-    scene = dataclasses.replace(SCENE, harmonics=2, dihedral=2)
-    r = pf.solve(scene, grid, EPS, checks=True)
+    r = pushed
     assert r.converged
     assert list(r.attrs['start_unstable_m']) == [2]
     assert r.energy < axi.energy
@@ -64,3 +70,22 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric):
     # 1.0e-3 apart on the axisymmetric state
     assert (r.attrs['topology'], r.attrs['genus']) == ('1 sphere', 0.0)
     assert r.attrs['level_set_energy'] == pytest.approx(axi.attrs['level_set_energy'], rel=2e-3)
+
+
+def test_a_non_axisymmetric_branch_is_followed_in_v(pushed):
+    # pseudo-arclength continuation of the m = 2 state with the exact coupled Hessian:
+    # along a branch dE/dv = nu_V dV0/dv (A0 fixed), so between two points E moves by
+    # the trapezoid of nu_V over V0's change, to O(dv^3) (measured 1e-6 relative)
+    points = list(pf.continuation(pushed, 'reduced_volume', -0.002, 2,
+                                  options={'pf_hessian': 'coupled'}))
+    assert len(points) == 2
+    chain = [pushed] + points
+    for a, b in zip(chain, chain[1:]):
+        assert b.phi.shape == a.phi.shape and b.attrs['index_0'] == 0
+        v = [x.attrs['reduced_volume'] for x in (a, b)]
+        dV0 = np.diff([x.scene.volume for x in (a, b)])[0]
+        trapezoid = 0.5 * (a.nu[1] + b.nu[1]) * dV0
+        assert v[1] < v[0]
+        assert b.energy - a.energy == pytest.approx(trapezoid, rel=1e-4)
+    # the m = 2 part stays: the branch is the non-axisymmetric one
+    assert all(np.abs(p.phi[:, 1]).max() > 1e-2 for p in points)
