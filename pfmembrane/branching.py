@@ -67,6 +67,13 @@ class Branch:
             raise ValueError("a branch starts from a converged result on its grid (a solve's)")
         self.result, self.parameter, self.grid = result, parameter, result.grid
         self.scene = result.scene
+        if self.scene.harmonics:
+            # the corrector factors the exact Jacobian: its inertia is the index and shows
+            # folds and bifurcations, which the block-diagonal model's would not
+            options = {'pf_hessian': 'coupled', **(options or {})}
+            if options['pf_hessian'] != 'coupled':
+                raise ValueError("a branch with harmonics is followed with the exact "
+                                 "Hessian: pf_hessian 'coupled'")
         self.problem = Problem(self.grid, self.scene, result.eps, prefix or next_prefix(),
                                options)
         self.x = self.problem.vec(result.phi)

@@ -1,8 +1,8 @@
 """The three-fold branch followed by pseudo-arclength continuation in v: from the three-fold
 state at v 0.95 (the oblate at reduced c0 2.8 solved, pushed along its m = 3 critical mode,
 solved with the harmonics m = 0, 3, ..., 3J; threefold.py's scene), `pf.continuation` in
-the reduced volume with the exact coupled Hessian factored (-pf_hessian coupled: the
-corrector's Newton steps and the index from its inertia), towards the bifurcation off the
+the reduced volume (with harmonics it factors the exact coupled Hessian: the corrector's
+Newton steps and the index from its inertia), towards the bifurcation off the
 oblate near v 0.9514 (ds > 0) and away from it (ds < 0). At every point: E against the
 oblate's at the same v (solved from the last one's), the signed amplitude of psi_3 and the index
 within the harmonics. A supercritical pitchfork's branch ends on the oblate at the
@@ -47,11 +47,10 @@ def main(argv=None):
         raise SystemExit(f"the three-fold solve at v {V} did not converge: {start.message}")
     pf.stability(start)   # its index, from the coupled Hessian's inertia
     rows = [row(grid, start, pf.solve(scene, grid, EPS), 'start (solve)', time.perf_counter() - t)]
-    options = {'pf_hessian': 'coupled'}
     for ds in (args.ds, -args.ds):
         oblate = None
         t = time.perf_counter()
-        for point in pf.continuation(start, 'reduced_volume', ds, args.steps, options=options):
+        for point in pf.continuation(start, 'reduced_volume', ds, args.steps):
             v = point.attrs['reduced_volume']
             oblate = pf.solve(dataclasses.replace(scene, reduced_volume=v), grid, EPS,
                               start=oblate)
@@ -80,8 +79,8 @@ def write(args, record, rows):
     lines += [f"Reduced c0 = 2 C0 R = {C0} (C0 {C0 / (2 * RADIUS):g} at R {RADIUS}), eps {EPS}, "
               "6,124 nodes of the full box (half box), 2 ranks; harmonics m = 0, 3, ..., "
               f"{3 * args.harmonics} (cosines). The start: the fresh three-fold solve at v {V}. "
-              f"Then `pf.continuation(start, 'reduced_volume', ds, {args.steps}, "
-              "options={'pf_hessian': 'coupled'})` for ds = "
+              f"Then `pf.continuation(start, 'reduced_volume', ds, {args.steps})` (a branch "
+              "with harmonics factors the exact coupled Hessian) for ds = "
               f"+{args.ds:g} and -{args.ds:g} (arclength in the RMS of the unknowns and v). "
               "E oblate: the axisymmetric solve at the point's v. psi_3: r^3 chi_3 at the node "
               "where its magnitude is largest (its sign flips where the branch passes the "

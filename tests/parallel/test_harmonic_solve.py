@@ -73,11 +73,14 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric, 
 
 
 def test_a_non_axisymmetric_branch_is_followed_in_v(pushed):
-    # pseudo-arclength continuation of the m = 2 state with the exact coupled Hessian:
-    # along a branch dE/dv = nu_V dV0/dv (A0 fixed), so between two points E moves by
-    # the trapezoid of nu_V over V0's change, to O(dv^3) (measured 1e-6 relative)
-    points = list(pf.continuation(pushed, 'reduced_volume', -0.002, 2,
-                                  options={'pf_hessian': 'coupled'}))
+    # pseudo-arclength continuation of the m = 2 state (with the exact coupled Hessian,
+    # which a branch with harmonics takes): along a branch dE/dv = nu_V dV0/dv (A0
+    # fixed), so between two points E moves by the trapezoid of nu_V over V0's change,
+    # to O(dv^3)
+    with pytest.raises(ValueError, match='coupled'):
+        next(pf.continuation(pushed, 'reduced_volume', -0.002, 1,
+                             options={'pf_hessian': 'block'}))
+    points = list(pf.continuation(pushed, 'reduced_volume', -0.002, 2))
     assert len(points) == 2
     chain = [pushed] + points
     for a, b in zip(chain, chain[1:]):
