@@ -104,7 +104,7 @@ class HarmonicForms:
         self.grad_M = (self.scale * (ops.B0.T @ (self.w * self.R * mean_T
                                                  * (ops.z - zc)[:, None]))).ravel()
         self.shape = (ops.B0.shape[1], nh)
-        self._interleaved = self._coupled = self._E = None
+        self._interleaved = self._coupled = self._E = self._factors = None
 
     # -- fields ------------------------------------------------------------------
     def _coefficients(self, chi):
@@ -256,10 +256,13 @@ class HarmonicForms:
         return self._scaled(H)
 
     def _scaled(self, K):
-        """S K S for a local matrix K in chi (interleaved, nh a + j): K in x."""
-        s = self.scale.ravel()
-        rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
-        K.data *= s[rows] * s[K.indices]
+        """S K S for a local matrix K in chi on `pattern` (interleaved, nh a + j): K in
+        x. The factors s_row s_col, one per entry of the pattern, are computed once."""
+        if self._factors is None:
+            s = self.scale.ravel()
+            rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+            self._factors = s[rows] * s[K.indices]
+        K.data *= self._factors
         return K
 
     def _field_operators(self):
