@@ -18,7 +18,7 @@ import numpy as np
 from pfmembrane.analysis.checks import ENERGETIC, phase_field_checks
 from pfmembrane.parallel.problem import PARAMETERS, Problem, next_prefix
 from pfmembrane.parallel.solver import SolveError
-from pfmembrane.result import MULTIPLIERS, Result
+from pfmembrane.result import Result, multiplier_names
 
 CRITICAL_IT = 12  # inverse iterations for the critical mode at a bifurcation
 # The arclength corrector keeps its factorization once |F| is below CHORD_RTOL of the
@@ -43,7 +43,7 @@ def predict(older, newer, ratio=1.0):
         raise ValueError("predict needs two results on the same nodes")
     phi = newer.phi + ratio * (newer.phi - older.phi)
     nu = newer.nu + ratio * (newer.nu - older.nu)
-    attrs = {**newer.attrs, **dict(zip(MULTIPLIERS, nu)), 'converged': 1}
+    attrs = {**newer.attrs, **dict(zip(multiplier_names(newer.attrs), nu)), 'converged': 1}
     return Result(newer.nodes, phi, attrs, grid=newer.grid, path=newer.path)
 
 
@@ -219,7 +219,8 @@ def _point(branch, p, s, index, dp_ds, fold, changed, its, checks):
     vals = problem.assembly.values(branch.x)
     nu = problem.nu
     attrs = {**res.attrs, branch.parameter: p, 'energy': vals[0], 'area': vals[1],
-             'volume': vals[2], 'moment': vals[3], **dict(zip(MULTIPLIERS, nu)),
+             'volume': vals[2], 'moment': vals[3], 'moment_x': vals[4],
+             **dict(zip(multiplier_names(res.attrs), nu)),
              'converged': 1, 'arclength': s, 'index_0': -1 if index is None else index,
              'dp_ds': dp_ds, 'fold': fold, 'index_change': changed,
              'stage1_iterations': -1, 'stage2_iterations': its,
@@ -241,7 +242,7 @@ def along(result, tangent, step):
     tangent's parameter, a start for the solve there (on `result`'s grid)."""
     phi = result.phi + step * tangent.phi
     nu = result.nu + step * tangent.nu
-    attrs = {**result.attrs, **dict(zip(MULTIPLIERS, nu)), 'converged': 1,
+    attrs = {**result.attrs, **dict(zip(multiplier_names(result.attrs), nu)), 'converged': 1,
              tangent.parameter: float(result.attrs[tangent.parameter]) + step}
     return Result(result.nodes, phi, attrs, grid=result.grid, path=result.path)
 

@@ -12,11 +12,11 @@ from mpi4py import MPI
 
 from pfmembrane.analysis.checks import phase_field_checks, surface_checks
 from pfmembrane.grid import Grid
-from pfmembrane.io.options import UsageError
+from pfmembrane.io.options import STARTS_3D, UsageError
 from pfmembrane.kernels.azimuthal import RIGID
 from pfmembrane.parallel import petsc
 from pfmembrane.parallel.problem import Problem, next_prefix
-from pfmembrane.result import Result
+from pfmembrane.result import Result, multiplier_names
 from pfmembrane.starts import start_phi
 
 # Log events whose times a result reports: functionals and their derivatives
@@ -58,7 +58,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
     """
-    if scene.harmonics and start is None and (options or {}).get('pf_start') != 'across':
+    if scene.harmonics and start is None and (options or {}).get('pf_start') not in STARTS_3D:
         axisymmetric = _solve(dataclasses.replace(scene, harmonics=0), grid, eps, None, options,
                               None, False)
         if not axisymmetric.converged:
@@ -172,10 +172,9 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
         (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
         if grid.setup_pending and grid.adapt_info else (0.0, 0.0, np.nan))
     grid.setup_pending = False
-    attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3], eps=eps,
-                 k=scene.k, c0=scene.c0, gamma=grid.params['gamma'], nu_area=nu[0],
-                 nu_volume=nu[1], nu_moment=nu[2] if len(nu) == 3 else 0.0,
-                 symmetric=int(scene.symmetric), converged=int(converged),
+    attrs = dict(energy=vals[0], area=vals[1], volume=vals[2], moment=vals[3],
+                 moment_x=vals[4], eps=eps, k=scene.k, c0=scene.c0,
+                 gamma=grid.params['gamma'], symmetric=int(scene.symmetric), converged=int(converged),
                  wall_time=setup + time.perf_counter() - t0, n_procs=comm.getSize(),
                  cutoff=grid.params['cutoff'], quad_degree=grid.params['quad_degree'],
                  spacing_smoothing=grid.params['spacing_smoothing'],
@@ -200,6 +199,8 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
     if scene.harmonics:
         attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
                      dihedral=scene.dihedral)
+    attrs.update({'nu_moment': 0.0, **dict(zip(multiplier_names(attrs), nu))})
+    if scene.harmonics:
         if converged and checks:
             attrs.update(surface_checks(mpi, grid.nodes, phi, attrs, grid.discrete.beta))
     elif converged and checks:  # an interrupted run checkpoints at once

@@ -8,8 +8,18 @@ import numpy as np
 from pfmembrane.io import checkpoint
 from pfmembrane.scene import Scene
 
-# The multipliers' attribute names: L = E - nu . (c - c0), c = (A, V, M).
-MULTIPLIERS = ('nu_area', 'nu_volume', 'nu_moment')
+
+def multiplier_names(attrs):
+    """The attribute names of the multipliers (L = E - nu . (c - c0)) of a
+    result with attributes `attrs`, one per constraint: nu_A, nu_V, nu_M on a
+    full box (the moment along the axis), nu_X with the harmonic m = 1 (the
+    moment across it, `parallel.assembly`)."""
+    names = ['nu_area', 'nu_volume']
+    if not attrs.get('symmetric', 0):
+        names.append('nu_moment')
+    if int(attrs.get('harmonics_highest', 0)) >= 1 and int(attrs.get('dihedral', 1)) == 1:
+        names.append('nu_moment_x')
+    return names
 
 
 @dataclass
@@ -45,9 +55,8 @@ class Result:
 
     @property
     def nu(self):
-        """Multipliers (nu_A, nu_V[, nu_M]): L = E - nu . (c - c0)."""
-        n = 2 if self.attrs.get('symmetric', 0) else 3
-        return np.array([float(self.attrs.get(k, 0.0)) for k in MULTIPLIERS[:n]])
+        """Multipliers (nu_A, nu_V[, nu_M][, nu_X]): L = E - nu . (c - c0)."""
+        return np.array([float(self.attrs.get(k, 0.0)) for k in multiplier_names(self.attrs)])
 
     @property
     def level_set_energy(self):

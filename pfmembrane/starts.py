@@ -1,11 +1,12 @@
 """The start of a solve: a family's initial shape (a spheroid, a torus, two
-spheres, or the sharp-interface shape) checked against its box, or an
+spheres, the sharp-interface shape, or with harmonics a spheroid across the
+axis or a Moebius image of the Clifford torus) checked against its box, or an
 earlier result's phi_h on a new grid, its tanh profile rescaled to eps."""
 import math
 
 import numpy as np
 
-from pfmembrane.io.options import SHAPE_NAMES, UsageError, start_kind
+from pfmembrane.io.options import SHAPE_NAMES, STARTS_3D, UsageError, start_kind
 from pfmembrane.kernels import initial
 from pfmembrane.kernels.adapt import transfer
 
@@ -70,12 +71,17 @@ def start_phi(scene, grid, eps, start, shape='auto', perturb=0.0):
         if kind == 'across' and not scene.harmonics:
             raise UsageError("-pf_start across: a shape across the axis needs harmonics "
                              "(-pf_harmonics)")
-        if kind == 'across':
-            a, c = geometry
-            return initial.harmonic_coefficients(
-                grid.nodes - [0.0, scene.zc],
-                lambda xyz: initial.ellipsoid_phi(xyz, (c, a, a), eps),
-                scene.harmonic_set, grid.eps_min), None, False
+        if kind == 'moebius' and not (scene.harmonics and scene.dihedral == 1):
+            raise UsageError("-pf_start moebius: a Moebius torus needs the harmonic m = 1 "
+                             "(-pf_harmonics J -pf_dihedral 1 -pf_symmetric)")
+        if kind in STARTS_3D:
+            if kind == 'moebius':
+                field = lambda xyz: initial.moebius_phi(xyz, geometry, eps)  # noqa: E731
+            else:  # the long axis c along x
+                a, c = geometry
+                field = lambda xyz: initial.ellipsoid_phi(xyz, (c, a, a), eps)  # noqa: E731
+            return initial.harmonic_coefficients(grid.nodes - [0.0, scene.zc], field,
+                                                 scene.harmonic_set, grid.eps_min), None, False
         if kind != 'sharp':
             phi = fresh_phi(grid.nodes, kind, geometry, scene.zc, eps)
             return lifted(phi, grid.nodes, scene, perturb), None, False

@@ -233,3 +233,31 @@ def test_at_the_budding_limit_two_tanh_spheres_hold_too_much_volume():
                    + initial.tanh_sphere(ratio * a, eps)[0] - A0, 0.1, 0.4)
         assert (initial.tanh_sphere(a, eps)[1] + initial.tanh_sphere(ratio * a, eps)[1]) \
             / unit > v
+
+
+def test_the_moebius_start_is_the_clifford_torus_inverted():
+    # the unit inversion about (d, 0, 0) of the torus of radii 1 and sqrt 2: d = 0 is the
+    # Clifford torus itself; d = 0.1, 0.2, 0.3 give the reduced volumes 0.743, 0.825,
+    # 0.928 (published to three digits)
+    reduced = lambda d: initial._reduced_volume(*initial._inverted_clifford(d, 128)[2:])  # noqa: E731
+    assert abs(reduced(0.0) - CLIFFORD) < 1e-12
+    for d, v in ((0.1, 0.743), (0.2, 0.825), (0.3, 0.928)):
+        assert abs(reduced(d) - v) <= 5e-4
+    area, volume = 4 * np.pi * R ** 2, 0.8 * 4 / 3 * np.pi * R ** 3
+    c = initial.moebius_torus(area, volume)
+    assert abs(reduced(c.d) - 0.8) < 1e-10
+    # its hole, the image of the outer equator (the first row of samples), is centred
+    # on the axis
+    inner = np.hypot(*c.points[:256, :2].T)
+    assert np.abs(c.points[:256, 2]).max() < 1e-12
+    assert inner.max() - inner.min() < 1e-12 * inner.max()
+    # inside its tube and nowhere else: the tube's middle on either side (thick and
+    # thin), the axis (the hole), above the hole
+    equator = c.points[np.abs(c.points[:, 2]) < 1e-12]
+    middle = [0.5 * (inner[0] + s * equator[:, 0]).max() * s for s in (1, -1)]
+    x = np.array([[middle[0], 0.0, 0.0], [middle[1], 0.0, 0.0], [0.0, 0.0, 0.0],
+                  [0.0, 0.0, 0.4]])
+    phi = initial.moebius_phi(x, c, 0.01)
+    assert phi[0] > 0.99 and phi[1] > 0.99 and phi[2] < -0.99 and phi[3] < -0.99
+    with pytest.raises(ValueError, match='Moebius'):
+        initial.moebius_torus(area, 0.7 * 4 / 3 * np.pi * R ** 3)

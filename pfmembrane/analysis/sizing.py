@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from pfmembrane.sharp import solver as sharp
-from pfmembrane.io.options import STARTS, UsageError
+from pfmembrane.io.options import STARTS, STARTS_3D, UsageError
 from pfmembrane.kernels.initial import construction, extent
 from pfmembrane.kernels.functionals import F_E
 from pfmembrane.kernels.nodes import nodal_spacing, uniform
@@ -36,7 +36,7 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
     """
     area, volume = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
     sizes = {kind: extent(kind, construction(kind, branch, area, volume))
-             for kind in STARTS[branch] if kind not in ('sharp', 'across')}
+             for kind in STARTS[branch] if kind not in ('sharp', *STARTS_3D)}
     if branch not in sharp.BRANCHES:
         return sizes
     try:

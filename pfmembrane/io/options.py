@@ -20,13 +20,16 @@ from pfmembrane.paper import PAPER_BOX, SCENE
 # (`kernels.initial.construction`; the sharp solver has no pear branch: two unequal spheres).
 STARTS = {'oblate': ('spheroid', 'sharp'), 'prolate': ('spheroid', 'sharp', 'across'),
           'stomatocyte': ('sharp',), 'pear': ('spheres',), 'budded': ('spheres',),
-          'torus': ('torus',)}
+          'torus': ('torus', 'moebius')}
 BRANCHES = tuple(STARTS)
-START = ('auto', 'spheroid', 'sharp', 'across')
+START = ('auto', 'spheroid', 'sharp', 'across', 'moebius')
+# Starts built in 3D, projected onto the harmonics: only with harmonics.
+STARTS_3D = ('across', 'moebius')
 # Families whose starts are up-down symmetric: the half box (-pf_symmetric) holds them.
 UP_DOWN = ('oblate', 'prolate', 'budded', 'torus')
 SHAPE_NAMES = {'spheroid': 'spheroid', 'torus': 'ring torus', 'spheres': 'pair of spheres',
-               'sharp': 'sharp-interface shape', 'across': 'spheroid across the axis'}
+               'sharp': 'sharp-interface shape', 'across': 'spheroid across the axis',
+               'moebius': 'Moebius image of the Clifford torus'}
 STAGE1 = ('newton', 'tao', 'none')
 HESSIANS = ('block', 'coupled')
 QUADRATURE = (1, 2, 4, 5)
@@ -113,7 +116,8 @@ HELP = {
     'branch': 'family of the initial guess: ' + ' | '.join(BRANCHES),
     'start': 'initial shape: ' + ' | '.join(START) + ' (auto: spheroid for oblate, prolate; '
              'sharp-interface shape for stomatocyte; two spheres for budded, pear (unequal); '
-             'a circular torus for torus)',
+             'a circular torus for torus); with harmonics also across (a prolate across the '
+             'axis) and moebius (a torus: the Clifford torus inverted to the reduced volume)',
     'nodes': 'approximate node count of the uniform grid (of the full box)',
     'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, '
                  'no moment constraint (' + ', '.join(UP_DOWN) + ')',
@@ -338,10 +342,11 @@ def check_scene(s):
     harmonics, dihedral = getattr(s, 'harmonics', 0), getattr(s, 'dihedral', 1)
     _require(harmonics >= 0, 'harmonics', '>= 0', harmonics)
     _require(dihedral >= 1, 'dihedral', '>= 1', dihedral)
-    if harmonics and dihedral == 1:
-        raise UsageError("-pf_harmonics with -pf_dihedral 1: m = 1 holds the translations across "
-                         "the axis and the rotations about axes across it, which are not pinned "
-                         "(not implemented); give the scene's dihedral order n >= 2")
+    if harmonics and dihedral == 1 and not s.symmetric:
+        raise UsageError("-pf_harmonics with -pf_dihedral 1 on the full box: m = 1 holds the "
+                         "rotations about axes across the axis, which only the half box's "
+                         "mirror pins (add -pf_symmetric), or give the scene's dihedral order "
+                         "n >= 2")
     if not getattr(s, 'mirror', True):
         raise UsageError("-pf_mirror 0: sines (no mirror plane through the axis) need the "
                          "rotation about the axis pinned, which is not implemented")

@@ -78,7 +78,9 @@ def unknown_scale(nodes, h, harmonics):
 
 class HarmonicForms:
     """E, A, V, M of a field with harmonics `harmonics` on one grid's local
-    operators: values, gradients and Hessian-vector products.
+    operators: values, gradients and Hessian-vector products; with m = 1
+    (dihedral order 1) the gradient of the moment across the axis X, linear
+    in the unknowns, that pins the translation along x (`grad_X`).
 
     Not collective. A field is a local array x of shape (nlocal, nh), ghosts
     included: the unknowns chi / `scale` (`unknown_scale` of the local nodes;
@@ -103,6 +105,11 @@ class HarmonicForms:
         self.grad_V = (0.5 * self.scale * (ops.B0.T @ (self.w * self.R * mean_T))).ravel()
         self.grad_M = (self.scale * (ops.B0.T @ (self.w * self.R * mean_T
                                                  * (ops.z - zc)[:, None]))).ravel()
+        self.grad_X = None
+        if harmonics.dihedral == 1 and harmonics.highest >= 1:
+            # X = int x (1 + phi) / 2 with x = r cos(theta): cos 1 alone, mean cos^2 = 1/2
+            cos1 = ((harmonics.m == 1) & ~harmonics.sine)[None, :]
+            self.grad_X = (0.25 * self.scale * (ops.B0.T @ (self.w * self.R * r * cos1))).ravel()
         self.shape = (ops.B0.shape[1], nh)
         self._interleaved = self._coupled = self._E = self._factors = None
 

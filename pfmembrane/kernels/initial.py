@@ -1,11 +1,17 @@
 """Initial guesses with the scene's area and volume, tanh profiles of signed
 distances: spheroids, tori, two spheres on the axis, and the surface of a
 given generating curve (a sharp-interface shape)."""
+from typing import NamedTuple
+
 import numpy as np
 from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 PEAR_RATIO = 0.7  # the pear's start: two spheres of this radius ratio
+CLIFFORD = np.sqrt(2.0)  # the Clifford torus: centre-line radius over tube radius
+# The Moebius torus start inverts about (d, 0, 0), d up to this (the hole's edge is at
+# sqrt 2 - 1 = 0.414, where the image becomes unbounded).
+MOEBIUS_D_MAX = 0.35
 # The rounding of a curve's distance at the axis, in resampling spacings: the sharp starts
 # resample every eps / 32 (api.CURVE_SPACING), so over eps / 2.
 AXIS_ROUNDING = 16
@@ -83,6 +89,85 @@ def harmonic_coefficients(points, field, harmonics, floor, samples=8):
     T = np.where(harmonics.sine, np.sin(mt), np.cos(mt))
     c = f @ T / (T * T).sum(axis=0)
     return c / np.maximum(r, floor)[:, None] ** harmonics.m
+
+
+class Cyclide(NamedTuple):
+    """A Moebius image of the Clifford torus (`moebius_torus`), sampled:
+    `points` and unit outward `normals` on it, and the map back to the
+    Clifford torus, point -> centre + (point / scale + (hole, 0, 0) -
+    centre) / |...|^2, centre = (d, 0, 0)."""
+    points: np.ndarray
+    normals: np.ndarray
+    d: float
+    scale: float
+    hole: float
+    tree: cKDTree
+
+
+def _inverted_clifford(d, n):
+    """The unit inversion about (d, 0, 0) of the Clifford torus of tube radius
+    1 round the circle of radius sqrt 2 in z = 0, on n x n points of its two
+    angles: points Y and area vectors Y_u x Y_w (outward), area, volume."""
+    u = 2 * np.pi * np.arange(n) / n
+    U, W = np.meshgrid(u, u, indexing='ij')
+    rr = CLIFFORD + np.cos(U)
+    X = np.stack([rr * np.cos(W), rr * np.sin(W), np.sin(U)], axis=-1)
+    Xu = np.stack([-np.sin(U) * np.cos(W), -np.sin(U) * np.sin(W), np.cos(U)], axis=-1)
+    Xw = np.stack([-rr * np.sin(W), rr * np.cos(W), np.zeros_like(U)], axis=-1)
+    D = X - [d, 0.0, 0.0]
+    q = np.einsum('...i,...i', D, D)[..., None]
+    # the inversion's differential: (I - 2 D D^T / |D|^2) / |D|^2
+    J = lambda T: T / q - 2 * D * np.einsum('...i,...i', D, T)[..., None] / q ** 2  # noqa: E731
+    Y = [d, 0.0, 0.0] + D / q
+    N = np.cross(J(Xu), J(Xw))
+    h2 = (2 * np.pi / n) ** 2   # the periodic trapezoid rule: spectral accuracy
+    volume = np.einsum('...i,...i', Y, N).sum() * h2 / 3
+    N = N * np.sign(volume)     # an inversion reverses the orientation
+    return Y.reshape(-1, 3), N.reshape(-1, 3), np.linalg.norm(N, axis=-1).sum() * h2, \
+        abs(volume)
+
+
+def moebius_torus(area, volume, samples=256):
+    """The Moebius image of the Clifford torus with this area and volume: the
+    unit inversion about (d, 0, 0) inside its hole (d = 0 the Clifford torus,
+    reduced volume 0.71164; up to 0.93 at d = 0.3), scaled to the area,
+    placed with the centre of its hole (the image of the outer equator) on
+    the axis and its mirror plane z = 0. A non-axisymmetric torus whose
+    Willmore energy stays 2 pi^2: E = pi^2 k at C0 = 0 (Marques and Neves).
+    Raises ValueError for reduced volumes outside (0.7117, 0.98)."""
+    R = np.sqrt(area / (4.0 * np.pi))
+    v = volume / (4.0 / 3.0 * np.pi * R ** 3)
+    reduced = lambda d: _reduced_volume(*_inverted_clifford(d, 128)[2:])  # noqa: E731
+    low, high = reduced(0.0), reduced(MOEBIUS_D_MAX)
+    if not low < v < high:
+        raise ValueError(f"reduced volume {v:.6g} outside ({low:.5g}, {high:.5g}), the Moebius "
+                         "images of the Clifford torus inverted inside its hole")
+    d = brentq(lambda t: reduced(t) - v, 0.0, MOEBIUS_D_MAX, xtol=1e-14)
+    Y, N, A, _ = _inverted_clifford(d, samples)
+    scale = np.sqrt(area / A)
+    outer = CLIFFORD + 1.0
+    hole = d + 0.5 * (1.0 / (outer - d) - 1.0 / (outer + d))
+    points = scale * (Y - [hole, 0.0, 0.0])
+    normals = N / np.linalg.norm(N, axis=1)[:, None]
+    return Cyclide(points, normals, d, scale, hole, cKDTree(points))
+
+
+def _reduced_volume(area, volume):
+    return volume / (4.0 / 3.0 * np.pi * (area / (4.0 * np.pi)) ** 1.5)
+
+
+def moebius_phi(points, cyclide, eps):
+    """phi = tanh(d / (sqrt 2 eps)) of a `Cyclide` at 3D `points` (n x 3):
+    |d| the distance to the nearest sample's tangent plane (second order in
+    the samples' spacing), its sign that of the point's preimage (inside the
+    Clifford torus: positive)."""
+    _, i = cyclide.tree.query(points)
+    distance = np.abs(np.einsum('ij,ij->i', points - cyclide.points[i], cyclide.normals[i]))
+    c = np.array([cyclide.d, 0.0, 0.0])
+    D = points / cyclide.scale + [cyclide.hole, 0.0, 0.0] - c
+    P = c + D / np.einsum('ij,ij->i', D, D)[:, None]
+    inside = np.hypot(np.hypot(P[:, 0], P[:, 1]) - CLIFFORD, P[:, 2]) < 1.0
+    return np.tanh(np.where(inside, distance, -distance) / (np.sqrt(2.0) * eps))
 
 
 def profile(d, eps):
@@ -234,6 +319,8 @@ def construction(kind, branch, area, volume):
         return spheroid_axes(area, volume, branch)
     if kind == 'torus':
         return torus_radii(area, volume)
+    if kind == 'moebius':
+        return moebius_torus(area, volume)
     return two_spheres(area, volume, pear_ratio(area, volume) if branch == 'pear' else 1.0)
 
 
@@ -260,6 +347,9 @@ def extent(kind, shape):
     if kind == 'torus':
         a, b = shape
         return a + b, a
+    if kind == 'moebius':
+        p = shape.points
+        return float(np.hypot(p[:, 0], p[:, 1]).max()), float(np.abs(p[:, 2]).max())
     if kind == 'spheres':
         radii, heights = shape
         return float(np.max(radii)), float(np.max(np.abs(heights) + radii))

@@ -15,10 +15,13 @@ from pfmembrane.kernels.functionals import Functionals
 class Assembly:
     """Energy and constraints of one scene on one grid, on distributed Vecs.
 
-    Collective. `targets` = (A0, V0); on the full box the moment M = 0 is a
-    third constraint, on a half-box grid its mirror plane makes M vanish.
-    The unknowns are the free nodal values (Dirichlet nodes are eliminated),
-    in the layout's global numbering.
+    Collective. `targets` = (A0, V0). The moments pin the rigid motions the
+    scene leaves free: on the full box M = 0 (translation along the axis), on
+    a half-box grid its mirror plane makes M vanish; where the forms carry a
+    moment across the axis (`grad_X`: harmonics with m = 1), X is held where
+    the start puts it (its target is set at the first evaluation). The
+    unknowns are the free nodal values (Dirichlet nodes are eliminated), in
+    the layout's global numbering.
     """
 
     # The stage-2 Jacobian is this matrix itself, factored (`jacobian_operator`).
@@ -30,13 +33,18 @@ class Assembly:
         self.mpi = self.comm.tompi4py()
         self.eps = eps
         self.forms = forms or Functionals(grid.ops, eps, k, c0, zc, lambda: grid.gram)
-        moment = (0.0,) if grid.plane is None else ()
-        self.targets = np.array([*targets, *moment], dtype=float)
+        local = {'M': self.forms.grad_M} if grid.plane is None else {}
+        if getattr(self.forms, 'grad_X', None) is not None:
+            local['X'] = self.forms.grad_X
+        self.moments = tuple(local)
+        self.targets = np.array([*targets] + [0.0 if m == 'M' else np.nan for m in local])
         self.ncon = len(self.targets)
+        # where each constraint sits in the values (E, A, V, M, X)
+        self.constrained = np.array([1, 2] + [3 if m == 'M' else 4 for m in local])
         self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
         self._ghosted = self.layout.create_ghosted()
         self.grad_V = self._to_global(self.forms.grad_V)
-        self.grad_M = self._to_global(self.forms.grad_M) if self.ncon == 3 else None
+        self.grad_moments = [self._to_global(g) for g in local.values()]
         self._K = None
         self._pattern = None
         self.log = {name: PETSc.Log.Event('pf' + name) for name in
@@ -69,18 +77,33 @@ class Assembly:
 
     # -- functionals -----------------------------------------------------------
     def values(self, x):
-        """Global (E, A, V, M) at x."""
+        """Global (E, A, V, M, X) at x."""
         with self.log['Functional']:
             v = self._sum(self.forms.values(self.local(x)))
-        return self._full_box(v)
+        return self._full_box(v, x)
 
-    def _full_box(self, v):
-        """(E, A, V, M) from the summed parts: V gets its |Omega| / 2 and, on a
-        half box, M is the mirror's zero, not the half's moment."""
+    def _full_box(self, v, x):
+        """(E, A, V, M, X) from the summed parts: V gets its |Omega| / 2 and, on
+        a half box, M is the mirror's zero, not the half's moment; X, linear in
+        x, is 0 without a moment across the axis (the first one sets its
+        target)."""
         v[2] += 0.5 * self.volume_box
-        if self.ncon == 2:
+        if 'M' not in self.moments:
             v[3] = 0.0
-        return v
+        X = 0.0
+        if 'X' in self.moments:
+            X = self.grad_moments[-1].dot(x)
+            if np.isnan(self.targets[-1]):
+                self.targets[-1] = X
+        return np.append(v, X)
+
+    def constraint_gradients(self, gA):
+        """The constraints' gradients [grad A, grad V, moments...] given grad A."""
+        return [gA, self.grad_V, *self.grad_moments]
+
+    def constraints(self, vals):
+        """The constrained values (A, V, moments) among `vals` (E, A, V, M, X)."""
+        return np.asarray(vals)[self.constrained]
 
     def max_abs_phi(self, x):
         """max |phi_h| over every rank's quadrature points. Not the nodal values: a
@@ -97,7 +120,7 @@ class Assembly:
             self._to_global(lE, gE)
             self._to_global(lA, gA)
             v = self._sum(vals)
-        return self._full_box(v)
+        return self._full_box(v, x)
 
     # -- bordered matrix -------------------------------------------------------
     def bordered_matrix(self):

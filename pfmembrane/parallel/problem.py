@@ -51,7 +51,7 @@ class Problem:
     # -- state -----------------------------------------------------------------
     @property
     def nu(self):
-        """The multipliers (nu_A, nu_V[, nu_M]) of the current state."""
+        """The multipliers (nu_A, nu_V[, nu_M][, nu_X]) of the current state."""
         return self.solver.nu
 
     @nu.setter
@@ -76,6 +76,11 @@ class Problem:
         log stages); a stage that fails or a signal ends it unconverged."""
         PETSc = start()
         solver, settings = self.solver, self.settings
+        if nu0 is not None and len(nu0) < self.ncon:
+            # a start without the moment across the axis (axisymmetric, or sharp): that
+            # multiplier vanishes at every equilibrium, E, A and V being invariant under
+            # the translation it pins
+            nu0 = np.concatenate([nu0, np.zeros(self.ncon - len(nu0))])
         solved_nu = nu0 if solved else None
         stages = [('pfStage1', lambda v: solver.stage1(v, solved_nu)),
                   ('pfStage2', solver.stage2)]
@@ -192,8 +197,9 @@ class Problem:
         Hessian of L on the constraints' tangent space, the negative pivots of
         its factored bordered Jacobian (`jacobian`, exact only with the
         `coupled` assembly: -pf_hessian coupled) less the ncon of the
-        constraints. With cosines only and n >= 2 no rigid motion lies in the
-        harmonics. Collective."""
+        constraints. With cosines only, no rigid motion is left free: n >= 2
+        holds none, and with n = 1 (a half box) X pins the translation across
+        the axis. Collective."""
         if self.assembly.krylov:
             raise ValueError("an index needs the exact Hessian: -pf_hessian coupled")
         self.nu = nu

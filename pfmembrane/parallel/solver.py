@@ -54,10 +54,10 @@ class Solver:
         self.print = print_fn
         self.gE, self.gA = problem.create_vec(), problem.create_vec()
         self.ncon = problem.ncon
-        self.C = [self.gA, problem.grad_V, problem.grad_M][:self.ncon]
+        self.C = problem.constraint_gradients(self.gA)
         area, volume = problem.targets[:2]
         radius = np.sqrt(area / (4.0 * np.pi))
-        self.scale = np.array([area, volume, volume * radius])[:self.ncon]
+        self.scale = np.array([area, volume] + [volume * radius] * len(problem.moments))
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0
@@ -71,7 +71,7 @@ class Solver:
         """Values (E, A, V, M), constraint residual c - c0; fills gE, gA."""
         poll(self.mpi)  # every iteration of both stages passes here: leave together on a signal
         vals = self.P.gradients(x, self.gE, self.gA)
-        return vals, vals[1:1 + self.ncon] - self.P.targets
+        return vals, self.P.constraints(vals) - self.P.targets
 
     def combine(self, out, lam):
         """out = gE - sum lam_i C_i (the gradient of a Lagrangian)."""
@@ -90,7 +90,7 @@ class Solver:
         self.history.append(vals[0])
         if self.p.monitor:
             rel = np.abs(res) / self.scale
-            moment = f"rM {rel[2]:.2e} " if self.ncon == 3 else ''
+            moment = ''.join(f"r{m} {r:.2e} " for m, r in zip(self.P.moments, rel[2:]))
             self.print(f"  {stage} {it:3d} E {vals[0]:.10f} |g| {gnorm:.3e} "
                        f"rA {rel[0]:.2e} rV {rel[1]:.2e} {moment}"
                        f"nuA {self.nu[0]:.5g} nuV {self.nu[1]:.5g}")
@@ -203,7 +203,7 @@ class Solver:
                 x.copy(xt)
                 xt.axpy(t, d)
                 v2 = P.values(xt)
-                r2 = v2[1:1 + self.ncon] - P.targets
+                r2 = P.constraints(v2) - P.targets
                 if self._augmented(v2, r2, mu) <= La + 1e-4 * t * slope or t < 1e-8:
                     break
                 t *= 0.5

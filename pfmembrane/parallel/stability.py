@@ -90,7 +90,7 @@ class ModeAnalysis:
         x.setArray(np.asarray(phi)[lay.order[lay.start:lay.start + lay.nowned]])
         gA = x.duplicate()
         self.problem.gradients(x, x.duplicate(), gA)
-        self.C = [gA, self.problem.grad_V, self.problem.grad_M][:self.problem.ncon]
+        self.C = self.problem.constraint_gradients(gA)
         self.forms = kernel.ModeForms(d.ops, d.gram, d.gram.blocks(kernel.OPERATORS),
                                       self.problem.local(x), eps, scene.k, scene.c0, nu_area,
                                       scene.zc)
