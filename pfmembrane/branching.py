@@ -77,6 +77,7 @@ class Branch:
         self.problem = Problem(self.grid, self.scene, result.eps, prefix or next_prefix(),
                                options)
         self.x = self.problem.vec(result.phi)
+        self.problem.assembly.hold(self.x)
         self.problem.nu = result.nu
         self.checked = {}  # what `phase_field_checks` keeps between this branch's points
 

@@ -17,7 +17,7 @@ from pfmembrane.kernels.azimuthal import RIGID
 from pfmembrane.parallel import petsc
 from pfmembrane.parallel.problem import Problem, next_prefix
 from pfmembrane.result import Result, multiplier_names
-from pfmembrane.starts import start_phi
+from pfmembrane.starts import start_phi, start_topology
 
 # Log events whose times a result reports: functionals and their derivatives
 # into Vec/Mat, and the linear solves (factorizations included).
@@ -81,9 +81,13 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                           f"to m = {', '.join(map(str, back))}: a saddle, not a minimum (a "
                           "tighter stage 1, -pf_stage1_rtol, or a larger -pf_perturb may leave "
                           "it)", stacklevel=2)
-        result.attrs['parent'] = ''
+        result.attrs.update(parent='', start_topology=axisymmetric.attrs['start_topology'])
     else:
         result = _solve(scene, grid, eps, start, options, prefix, checks)
+    before, after = result.attrs.get('start_topology', ''), result.attrs.get('topology', '')
+    if before and after and before != after:
+        warnings.warn(f"the level set changed topology: the start was {before}, phi_h = 0 is "
+                      f"{after}", stacklevel=2)
     if result.unused_options:
         warnings.warn("solve options never used: "
                       f"{', '.join('-' + k for k in result.unused_options)}", stacklevel=2)
@@ -167,6 +171,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
         history = np.array(problem.solver.history)
         factorizations = problem.solver.factorizations
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
+        problem_start = problem.settings.start
     setup = grid.setup_time if grid.setup_pending else 0.0
     adapt_f, adapt_band, adapt_time = (
         (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
@@ -187,7 +192,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
                  stage2_linear_iterations=stats.get('stage2', {}).get('linear_iterations', -1),
                  factorizations=factorizations, adapt=adapt_f, adapt_band=adapt_band,
                  parent=start.path if start is not None else '',
-                 start_topology=start.attrs.get('topology', '') if start is not None else '',
+                 start_topology=start_topology(scene, start, problem_start),
                  time_setup=setup, time_adapt=adapt_time,
                  time_stage1=stats.get('stage1', {}).get('time', np.nan),
                  time_stage2=stats.get('stage2', {}).get('time', np.nan),

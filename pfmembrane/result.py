@@ -13,12 +13,16 @@ def multiplier_names(attrs):
     """The attribute names of the multipliers (L = E - nu . (c - c0)) of a
     result with attributes `attrs`, one per constraint: nu_A, nu_V, nu_M on a
     full box (the moment along the axis), nu_X with the harmonic m = 1 (the
-    moment across it, `parallel.assembly`)."""
+    moment across it, `parallel.assembly`), nu_phase with sines (the phase
+    condition, `parallel.harmonic`)."""
     names = ['nu_area', 'nu_volume']
     if not attrs.get('symmetric', 0):
         names.append('nu_moment')
-    if int(attrs.get('harmonics_highest', 0)) >= 1 and int(attrs.get('dihedral', 1)) == 1:
+    highest = int(attrs.get('harmonics_highest', 0))
+    if highest >= 1 and int(attrs.get('dihedral', 1)) == 1:
         names.append('nu_moment_x')
+    if len(attrs.get('harmonics', ())) > highest + 1:
+        names.append('nu_phase')
     return names
 
 

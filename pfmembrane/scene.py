@@ -61,9 +61,10 @@ class Scene(Targets):
     @classmethod
     def of(cls, attrs):
         """The scene of checkpoint attributes."""
+        highest = int(attrs.get('harmonics_highest', 0))
         return cls(reduced_volume=float(attrs['reduced_volume']), c0=float(attrs['c0']),
                    radius=float(attrs['radius']), k=float(attrs['k']),
                    box=tuple(float(b) for b in attrs['box']), branch=str(attrs['branch']),
-                   symmetric=bool(attrs.get('symmetric', 0)),
-                   harmonics=int(attrs.get('harmonics_highest', 0)),
-                   dihedral=int(attrs.get('dihedral', 1)))
+                   symmetric=bool(attrs.get('symmetric', 0)), harmonics=highest,
+                   dihedral=int(attrs.get('dihedral', 1)),
+                   mirror=len(attrs.get('harmonics', ())) <= highest + 1)  # sines: more

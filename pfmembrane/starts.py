@@ -15,6 +15,20 @@ from pfmembrane.kernels.adapt import transfer
 CURVE_SPACING = 1.0 / 32
 
 
+# The level set's topology of each constructed start (two spheres may overlap or touch).
+TOPOLOGY = {'spheroid': '1 sphere', 'across': '1 sphere', 'sharp': '1 sphere',
+            'torus': '1 torus', 'moebius': '1 torus'}
+
+
+def start_topology(scene, start=None, shape='auto'):
+    """What the start's phi = 0 is ('1 sphere', '1 torus'; '' unknown): an earlier
+    result's checked topology, or a fresh start's by its kind (`shape` the
+    -pf_start choice)."""
+    if start is not None:
+        return start.attrs.get('topology', '')
+    return TOPOLOGY.get(start_kind(scene.branch, shape), '')
+
+
 def check_run(p):
     """Refuse the options `p` (`io.options.Params`) of a fresh run whose start
     does not fit its box; a restart's box is its checkpoint's, an auto box is

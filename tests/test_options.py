@@ -201,7 +201,8 @@ def test_an_auto_box_without_a_start_is_refused():
 
 @pytest.mark.parametrize('values, message', [
     ({'harmonics': '2', 'dihedral': '1'}, r'-pf_dihedral 1 on the full box: m = 1 holds'),
-    ({'harmonics': '2', 'dihedral': '2', 'mirror': '0'}, r'-pf_mirror 0: sines'),
+    ({'harmonics': '2', 'dihedral': '2', 'mirror': '0', 'symmetric': '1'},
+     r'-pf_mirror 0: sines'),
     ({'harmonics': '1', 'dihedral': '2', 'tol': '1e-3'}, r'-pf_tol with -pf_harmonics'),
     ({'harmonics': '-1'}, r'-pf_harmonics must be >= 0'),
     ({'harmonics': '1', 'dihedral': '2', 'hessian': 'full'}, r'-pf_hessian: unknown Hessian'),

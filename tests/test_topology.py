@@ -1,6 +1,8 @@
 """The topology of a level set: spheres from the axis to the axis, tori off
 it, pieces through the box; a comparison with the sharp shape only for one
 sphere."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -57,3 +59,21 @@ def test_a_torus_is_not_compared_with_the_sharp_sphere(tmp_path):
     ckpt = field_checkpoint(tmp_path / 'f.h5', ring)
     with pytest.raises(ValueError, match='1 torus'):
         levelset.compare(ckpt)
+
+
+@pytest.mark.slow  # two solves
+def test_a_solve_that_changes_topology_says_so():
+    # The torus at v 0.8 and eps 0.04 keeps its hole; at v 0.85 its hole closes: a
+    # sphere. A fresh start knows its own topology, a restart its start's.
+    import sys
+    import pfmembrane as pf
+    comm = pf.api.petsc(sys.argv[:1]).COMM_SELF
+    scene = pf.Scene(reduced_volume=0.8, branch='torus', box=(0.8, 1.0), symmetric=True)
+    grid = pf.Grid.uniform(scene, nodes=1633, comm=comm)
+    torus = pf.solve(scene, grid, 0.04, checks=True)
+    assert torus.attrs['start_topology'] == torus.attrs['topology'] == '1 torus'
+    with pytest.warns(UserWarning, match='changed topology: the start was 1 torus, phi_h = 0 '
+                      'is 1 sphere'):
+        closed = pf.solve(replace(scene, reduced_volume=0.85), grid, 0.04, start=torus,
+                          checks=True)
+    assert closed.converged and closed.attrs['topology'] == '1 sphere'

@@ -144,7 +144,8 @@ HELP = {
     'harmonics': 'J: phi carries the azimuthal harmonics m = j n, j = 0..J (n: -pf_dihedral), '
                  'psi_j = r^m chi_j(r,z) cos(m theta); 0: axisymmetric',
     'dihedral': 'dihedral order n of the scene: the harmonics are multiples of n',
-    'mirror': 'a mirror plane through the axis: cosines only (0, sines too: not yet supported)',
+    'mirror': 'a mirror plane through the axis: cosines only (0: sines too, with -pf_dihedral '
+              '>= 2 on the full box; a phase condition holds the rotation about the axis)',
     'perturb': 'with harmonics: largest |psi_m| of the push a fresh start gets along the '
                'critical mode of each harmonic m unstable at the solved axisymmetric state '
                '(an axisymmetric restart: a deterministic bump in every m > 0)',
@@ -347,9 +348,10 @@ def check_scene(s):
                          "rotations about axes across the axis, which only the half box's "
                          "mirror pins (add -pf_symmetric), or give the scene's dihedral order "
                          "n >= 2")
-    if not getattr(s, 'mirror', True):
-        raise UsageError("-pf_mirror 0: sines (no mirror plane through the axis) need the "
-                         "rotation about the axis pinned, which is not implemented")
+    if harmonics and not getattr(s, 'mirror', True) and (dihedral == 1 or s.symmetric):
+        raise UsageError("-pf_mirror 0: sines (no mirror plane through the axis) need "
+                         "-pf_dihedral n >= 2 (the sine m = 1 holds the translation along y, "
+                         "which nothing pins) and the full box")
     if s.symmetric and s.branch not in UP_DOWN:
         raise UsageError(f"-pf_symmetric: the {s.branch} is not up-down symmetric, the half box "
                          f"cannot hold it (the half box admits {', '.join(UP_DOWN)})")

@@ -19,9 +19,8 @@ class Assembly:
     scene leaves free: on the full box M = 0 (translation along the axis), on
     a half-box grid its mirror plane makes M vanish; where the forms carry a
     moment across the axis (`grad_X`: harmonics with m = 1), X is held where
-    the start puts it (its target is set at the first evaluation). The
-    unknowns are the free nodal values (Dirichlet nodes are eliminated), in
-    the layout's global numbering.
+    the start puts it (`hold`). The unknowns are the free nodal values
+    (Dirichlet nodes are eliminated), in the layout's global numbering.
     """
 
     # The stage-2 Jacobian is this matrix itself, factored (`jacobian_operator`).
@@ -85,17 +84,18 @@ class Assembly:
     def _full_box(self, v, x):
         """(E, A, V, M, X) from the summed parts: V gets its |Omega| / 2 and, on
         a half box, M is the mirror's zero, not the half's moment; X, linear in
-        x, is 0 without a moment across the axis (the first one sets its
-        target)."""
+        x, is 0 without a moment across the axis."""
         v[2] += 0.5 * self.volume_box
         if 'M' not in self.moments:
             v[3] = 0.0
-        X = 0.0
-        if 'X' in self.moments:
-            X = self.grad_moments[-1].dot(x)
-            if np.isnan(self.targets[-1]):
-                self.targets[-1] = X
+        X = self.grad_moments[self.moments.index('X')].dot(x) if 'X' in self.moments else 0.0
         return np.append(v, X)
+
+    def hold(self, x):
+        """Hold the rigid motions the moments pin where the start x puts them:
+        X's target (M's is 0, the scene's centre). Collective."""
+        if 'X' in self.moments:
+            self.targets[self.moments.index('X') + 2] = self.values(x)[4]
 
     def constraint_gradients(self, gA):
         """The constraints' gradients [grad A, grad V, moments...] given grad A."""

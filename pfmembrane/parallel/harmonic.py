@@ -89,12 +89,50 @@ class HarmonicAssembly(Assembly):
                               layout.local_scale())
         self.harmonics, self.krylov = harmonics, not coupled
         super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
+        if np.any(harmonics.sine):
+            # the phase condition: its gradient, the start's rotation generator, set by `hold`
+            self.moments += ('Theta',)
+            self.grad_moments.append(self.create_vec())
+            self.targets = np.append(self.targets, 0.0)
+            self.constrained = np.append(self.constrained, 5)
+            self.ncon += 1
         self._state = None
         self._shift = 0.0
         self._J = None
 
     def local_pattern(self):
         return self.forms.pattern()
+
+    def _full_box(self, v, x):
+        """(E, A, V, M, X[, Theta]): with sines, the phase Theta (`hold`)."""
+        v = super()._full_box(v, x)
+        return np.append(v, self.grad_moments[-1].dot(x)) if 'Theta' in self.moments else v
+
+    def hold(self, x):
+        """`Assembly.hold`, and with sines the rotation about the axis: the
+        phase condition Theta = t . x / |t|^2 = 0 with t = -d x / d theta at
+        the start x (pde2path's phase condition; the shape turned by alpha is
+        phi(theta - alpha) = x + alpha t + ...), to first order the angle by
+        which the shape turned from the start (t . x = 0 there: sum m (x_c x_s
+        - x_s x_c)). Collective."""
+        super().hold(x)
+        if 'Theta' not in self.moments:
+            return
+        h = self.harmonics
+        own = x.getArray(readonly=True).reshape(-1, len(h))
+        t = np.zeros_like(own)
+        for k in np.flatnonzero(h.sine):
+            j = np.flatnonzero(~h.sine & (h.m == h.m[k]))[0]
+            # -d/dtheta (a cos m theta + b sin m theta) = -m b cos m theta + m a sin m theta;
+            # a harmonic's cosine and sine share their scale rho^-m
+            t[:, j], t[:, k] = -h.m[k] * own[:, k], h.m[k] * own[:, j]
+        g = self.grad_moments[-1]
+        g.setArray(t.ravel())
+        norm2 = g.dot(g)
+        if norm2 == 0.0:
+            raise ValueError("sines need a start that is not axisymmetric: at an axisymmetric "
+                             "one no phase fixes the rotation about the axis")
+        g.scale(1.0 / norm2)
 
     def max_abs_phi(self, x):
         return self.mpi.allreduce(self.forms.max_abs(self.local(x)), op=MPI.MAX)

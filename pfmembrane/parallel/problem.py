@@ -82,6 +82,7 @@ class Problem:
             # the translation it pins
             nu0 = np.concatenate([nu0, np.zeros(self.ncon - len(nu0))])
         solved_nu = nu0 if solved else None
+        self.assembly.hold(x)
         stages = [('pfStage1', lambda v: solver.stage1(v, solved_nu)),
                   ('pfStage2', solver.stage2)]
         if settings.stage1 == 'none':
@@ -203,7 +204,9 @@ class Problem:
         if self.assembly.krylov:
             raise ValueError("an index needs the exact Hessian: -pf_hessian coupled")
         self.nu = nu
-        ksp = self.jacobian(self.vec(phi))
+        x = self.vec(phi)
+        self.assembly.hold(x)
+        ksp = self.jacobian(x)
         ksp.setUp()
         nneg = self.negative_pivots(ksp)
         return None if nneg is None else nneg - self.ncon

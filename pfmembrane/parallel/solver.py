@@ -57,7 +57,9 @@ class Solver:
         self.C = problem.constraint_gradients(self.gA)
         area, volume = problem.targets[:2]
         radius = np.sqrt(area / (4.0 * np.pi))
-        self.scale = np.array([area, volume] + [volume * radius] * len(problem.moments))
+        # residuals relative to these: the moments' volume times radius, the phase an angle
+        self.scale = np.array([area, volume] + [1.0 if m == 'Theta' else volume * radius
+                                                for m in problem.moments])
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
         self.factorizations = 0

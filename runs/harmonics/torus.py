@@ -14,7 +14,6 @@ import argparse
 import dataclasses
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -48,7 +47,7 @@ def main(argv=None):
             rows.append(solved(v, eps, 0, lambda: pf.solve(scene, grid, eps, checks=True)))
             for J in map(int, args.highest.split(',')):
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
-                    rows.append([v, eps, J, 'skipped (deadline)'] + [''] * 8)
+                    rows.append([v, eps, J, 'skipped (deadline)'] + [''] * 7)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
                 rows.append(solved(v, eps, J, lambda: pf.solve(
@@ -62,19 +61,16 @@ def main(argv=None):
 
 def solved(v, eps, J, solve):
     """One table row: the solve's energies against pi^2, its topology, the X multiplier."""
-    t = time.perf_counter()
     r = solve()
-    seconds = time.perf_counter() - t
     if not r.converged:
-        return [v, eps, J or 'axisymmetric', f"not converged ({r.message})"] + [''] * 7 \
-            + [f"{seconds:.0f}"]
+        return [v, eps, J or 'axisymmetric', f"not converged ({r.message})"] + [''] * 7
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
     return [v, eps, J or 'axisymmetric', f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
             f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", r.attrs.get('topology', '-'),
             genus if genus == '' else int(genus),
             f"{r.attrs['nu_moment_x']:.4g}" if J else '',
-            f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}", f"{seconds:.0f}"]
+            f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}"]
 
 
 def write(args, record, rows):
@@ -88,8 +84,7 @@ def write(args, record, rows):
               "the moment across the axis; it vanishes where the translation is a symmetry "
               "of the discrete problem, so it measures what the truncation at J costs.", '']
     lines += report.table(['v', 'eps', 'J', 'E', 'E / pi^2 - 1', 'level-set E',
-                           'vs pi^2', 'topology', 'genus', 'nu_X', 'Newton its (1/2)',
-                           'wall s'], rows)
+                           'vs pi^2', 'topology', 'genus', 'nu_X', 'Newton its (1/2)'], rows)
     report.write(args.out, lines)
 
 

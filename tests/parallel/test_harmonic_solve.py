@@ -92,3 +92,23 @@ def test_a_non_axisymmetric_branch_is_followed_in_v(pushed):
         assert b.energy - a.energy == pytest.approx(trapezoid, rel=1e-4)
     # the m = 2 part stays: the branch is the non-axisymmetric one
     assert all(np.abs(p.phi[:, 1]).max() > 1e-2 for p in points)
+
+
+def test_with_sines_a_turned_state_is_the_same_equilibrium(pushed):
+    # Without a mirror plane through the axis (sines), the m = 2 state turned by alpha
+    # is an equilibrium of the same energy; the phase condition holds the turn where
+    # the start puts it (the rotation is otherwise a zero mode: no factorization, no
+    # index), so the solve stays turned and its index within the harmonics is 0.
+    alpha = 0.3
+    c = pushed.phi
+    turned = np.column_stack([c[:, 0]] + [np.cos(m * alpha) * c[:, j] for j, m in ((1, 2), (2, 4))]
+                             + [np.sin(m * alpha) * c[:, j] for j, m in ((1, 2), (2, 4))])
+    scene = dataclasses.replace(SCENE, harmonics=2, dihedral=2, mirror=False)
+    start = dataclasses.replace(pushed, phi=turned,
+                                attrs={**pushed.attrs, 'harmonics': [0, 2, 4, 2, 4]})
+    r = pf.solve(scene, pushed.grid, EPS, start=start, options={'pf_stage1': 'none'})
+    assert r.converged and r.phi.shape == turned.shape
+    assert r.energy == pytest.approx(pushed.energy, rel=1e-9)
+    assert abs(r.nu[-1]) < 1e-6 * abs(r.nu[0])  # nu_phase: the turn costs nothing
+    assert np.abs(r.phi - turned).max() < 1e-6 * np.abs(turned).max()
+    assert pf.stability(r) == 0

@@ -47,12 +47,15 @@ def _assembly(comm, xy, harmonics):
     return HarmonicAssembly(grid, EPS, 1.0, C0, (A0, V0), BOX[1] / 2, harmonics)
 
 
-@pytest.fixture(scope='module', params=[(6, 1), (3, 2)], ids=['m=0..6', 'm=0,2,4,6'])
+@pytest.fixture(scope='module', params=[(6, 1), (3, 2), (2, 3, True)],
+                ids=['m=0..6', 'm=0,2,4,6', 'm=0,3,6 with sines'])
 def problem(request):
     xy = _nodes()
     h = Harmonics(*request.param)
     P = _assembly(PETSc.COMM_WORLD, xy, h)
-    return P, P.layout.vec(_state(xy, h)), xy
+    x = P.layout.vec(_state(xy, h))
+    P.hold(x)
+    return P, x, xy
 
 
 def _direction(P, seed):
@@ -157,6 +160,7 @@ def test_the_coupled_hessian_is_the_exact_action(problem):
     P, x, xy = problem
     grid = P.grid
     Q = HarmonicAssembly(grid, EPS, 1.0, C0, (A0, V0), BOX[1] / 2, P.harmonics, coupled=True)
+    Q.hold(x)
     gE, gA = P.create_vec(), P.create_vec()
     P.gradients(x, gE, gA)
     P.assemble_bordered(x, SIGMA, P.constraint_gradients(gA), 0.0)
@@ -180,6 +184,7 @@ def test_two_ranks_give_one_ranks_numbers(problem, distributed):
     if comm.getRank() == 0:
         S = _assembly(PETSc.COMM_SELF, xy, P.harmonics)
         xs = S.layout.vec(_state(xy, P.harmonics))
+        S.hold(xs)
         sE, sA = S.create_vec(), S.create_vec()
         # M vanishes by symmetry: its rounding compares against E's scale
         assert np.allclose(S.gradients(xs, sE, sA), values, rtol=1e-13,
@@ -233,3 +238,31 @@ def test_the_moment_across_the_axis_is_the_fields_x_moment(problem):
     X = P.comm.tompi4py().allreduce(local)
     assert abs(X) > 1e-4 * P.values(x)[2] * R  # the state is off-centre in x
     assert abs(P.values(x)[4] - X) <= 1e-12 * abs(X)
+
+
+def test_with_sines_a_turn_about_the_axis_changes_only_the_phase(problem):
+    # the functionals are invariant under theta -> theta - alpha (the trapezoid rule
+    # integrates each harmonic exactly), and the phase condition measures alpha: to
+    # first order, since the turned state leaves the start's tangent line
+    P, x, xy = problem
+    h = P.harmonics
+    if not np.any(h.sine):
+        assert 'Theta' not in P.moments
+        return
+    assert P.moments == ('M', 'Theta')
+    phi = _state(xy, h)
+    phi[:, h.sine] = 0.1 * phi[:, ~h.sine][:, 1:]  # a state with sines too
+    before = P.layout.vec(phi)
+    P.hold(before)
+    for alpha in (1e-3, 0.4):
+        turned = phi.copy()
+        for k in np.flatnonzero(h.sine):
+            j = np.flatnonzero(~h.sine & (h.m == h.m[k]))[0]
+            c, s = np.cos(h.m[k] * alpha), np.sin(h.m[k] * alpha)
+            turned[:, j], turned[:, k] = c * phi[:, j] - s * phi[:, k], s * phi[:, j] + c * phi[:, k]
+        v0, v1 = P.values(before), P.values(P.layout.vec(turned))
+        assert np.allclose(v1[:5], v0[:5], rtol=1e-12, atol=1e-13 * abs(v0[0]))
+        assert v0[5] == pytest.approx(0.0, abs=1e-14)
+        if alpha < 0.01:
+            assert v1[5] == pytest.approx(alpha, rel=1e-2)
+    P.hold(x)  # the fixture's state, as the other tests expect
