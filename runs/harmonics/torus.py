@@ -47,7 +47,7 @@ def main(argv=None):
             rows.append(solved(v, eps, 0, lambda: pf.solve(scene, grid, eps, checks=True)))
             for J in map(int, args.highest.split(',')):
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
-                    rows.append([v, eps, J, 'skipped (deadline)'] + [''] * 7)
+                    rows.append([v, eps, J, 'skipped (deadline)'] + [''] * 9)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
                 rows.append(solved(v, eps, J, lambda: pf.solve(
@@ -63,14 +63,26 @@ def solved(v, eps, J, solve):
     """One table row: the solve's energies against pi^2, its topology, the X multiplier."""
     r = solve()
     if not r.converged:
-        return [v, eps, J or 'axisymmetric', f"not converged ({r.message})"] + [''] * 7
+        return [v, eps, J or 'axisymmetric', f"not converged ({r.message})"] + [''] * 9
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
     return [v, eps, J or 'axisymmetric', f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
             f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", r.attrs.get('topology', '-'),
-            genus if genus == '' else int(genus),
+            genus if genus == '' else int(genus), tube(r, 0.0), tube(r, np.pi),
             f"{r.attrs['nu_moment_x']:.4g}" if J else '',
             f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}"]
+
+
+def tube(r, theta):
+    """Where the nodes of the mirror plane z = zc have phi_h > 0 at angle theta:
+    'r0 - r1' (the tube's section there), from the nodal harmonics,
+    phi = sum_j r^m chi_j cos(m theta)."""
+    nodes, phi = r.nodes, np.atleast_2d(r.phi.T).T
+    m = np.asarray(r.attrs.get('harmonics', [0]))
+    plane = np.abs(nodes[:, 1] - r.attrs['box'][1] / 2)
+    on = plane <= plane.min() + 1e-9
+    inside = nodes[on, 0][(phi[on] * nodes[on, :1] ** m * np.cos(m * theta)).sum(axis=1) > 0]
+    return f"{inside.min():.3f} - {inside.max():.3f}" if len(inside) else '-'
 
 
 def write(args, record, rows):
@@ -82,9 +94,13 @@ def write(args, record, rows):
               "surface phi_h = 0 (the curve of revolution for the axisymmetric torus, the "
               "3D surface with harmonics) put on the constraints. nu_X: the multiplier of "
               "the moment across the axis; it vanishes where the translation is a symmetry "
-              "of the discrete problem, so it measures what the truncation at J costs.", '']
+              "of the discrete problem, so it measures what the truncation at J costs. Tube: "
+              "the nodes of the mirror plane z = zc where the nodal phi > 0 at theta = 0 and "
+              "pi, the section of the tube on either side of the axis; the start's is "
+              "lopsided, its hole's centre on the axis.", '']
     lines += report.table(['v', 'eps', 'J', 'E', 'E / pi^2 - 1', 'level-set E',
-                           'vs pi^2', 'topology', 'genus', 'nu_X', 'Newton its (1/2)'], rows)
+                           'vs pi^2', 'topology', 'genus', 'tube at theta = 0 (r)',
+                           'at theta = pi', 'nu_X', 'Newton its (1/2)'], rows)
     report.write(args.out, lines)
 
 
