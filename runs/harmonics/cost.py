@@ -2,7 +2,9 @@
 0.4, half box, eps 0.04, 6,124 nodes of the full box: the three-fold scene of
 threefold.py), solved axisymmetric and with the cosine harmonics m = 0, 3, ..., 3J for each
 J of --harmonics (-pf_dihedral 3; J = 4: five harmonics), each from its fresh start (the
-axisymmetric solve, then the push along the m = 3 critical mode), in turn, REPEAT times, in
+axisymmetric solve, then the push along the m = 3 critical mode: the largest J with each
+-pf_perturb of --perturb, the default 0.02 and one near the final amplitude, the others
+with 0.02), in turn, REPEAT times, in
 one sitting: wall time (the solve without its checks), peak memory, Newton and Krylov
 iterations, the energy. A scene whose harmonic solve ends at a non-axisymmetric equilibrium
 near its start, so that its wall measures the solver: the paper's discocyte with m up to 8
@@ -10,7 +12,7 @@ descends far from its m = 2 push (this page's version of 22707a7 in the history:
 converged in 1041 s, E 9.5908 against the axisymmetric 9.6003).
 Under mpiexec; written to runs/harmonics/cost.md.
 
-    mpiexec -n 2 python runs/harmonics/cost.py [--repeat 2] [--harmonics 2,4]
+    mpiexec -n 2 python runs/harmonics/cost.py [--repeat 2] [--harmonics 2,4] [--perturb 0.02,0.2]
 """
 import argparse
 import dataclasses
@@ -30,22 +32,27 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--repeat', type=int, default=2)
     ap.add_argument('--harmonics', default='2,4')
+    ap.add_argument('--perturb', default='0.02,0.2',
+                    help='-pf_perturb of the largest set: the push along the critical mode')
     ap.add_argument('--out', default=os.path.join(HERE, 'cost.md'))
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
     record = report.provenance()
     scene = pf.Scene(reduced_volume=0.95, c0=3.5, radius=0.4, branch='oblate', symmetric=True)
     grid = pf.Grid.uniform(scene, nodes=6124)
-    scenes = {'axisymmetric': scene}
-    for J in map(int, args.harmonics.split(',')):
-        scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines)"] = dataclasses.replace(
-            scene, harmonics=J, dihedral=3)
+    scenes = {'axisymmetric': (scene, {})}
+    highest = [int(J) for J in args.harmonics.split(',')]
+    for J in highest:
+        pushes = args.perturb.split(',') if J == max(highest) else ['0.02']
+        for p in pushes:
+            scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines), perturb {p}"] = (
+                dataclasses.replace(scene, harmonics=J, dihedral=3), {'pf_perturb': p})
     times = {name: [] for name in scenes}
     last, peak = {}, {}
     for _ in range(args.repeat):
-        for name, s in scenes.items():
+        for name, (s, options) in scenes.items():
             t = time.perf_counter()
-            r = pf.solve(s, grid, 0.04)
+            r = pf.solve(s, grid, 0.04, options=options)
             times[name].append(time.perf_counter() - t)
             last[name] = r
             # the resident set's peak only grows: the first round's is each solve's own
@@ -71,7 +78,8 @@ def write(args, record, times, last, peak):
     lines += ["The oblate at reduced c0 2.8 (C0 3.5, R 0.4), v 0.95, eps 0.04, half box, 6,124 "
               "uniform nodes of the full box (the paper's spacing), 2 ranks, each solve from "
               "its fresh start (with harmonics: the axisymmetric solve, then the push along the "
-              "m = 3 critical mode; both in its wall); the runs alternate, "
+              "m = 3 critical mode, its largest |psi_3| -pf_perturb (the three-fold state's "
+              "own is 0.163 with m up to 6: branch.md); both in its wall); the runs alternate, "
               f"{args.repeat} of each. Wall: `pf.solve` without the phase-field checks. "
               "Krylov per Newton step: stage 2's GMRES iterations over its Newton steps (the "
               "axisymmetric stage 2 factors its exact Jacobian). Peak memory: the largest "
