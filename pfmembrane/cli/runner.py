@@ -12,6 +12,7 @@ import os
 import re
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field, fields
 
 import h5py
@@ -102,9 +103,13 @@ def execute(p, comm, print_fn, solve_options=None, prefix=None, cache=None, star
     print_fn(f"grid: {grid.n_nodes} nodes ({d.layout.nglobal} free), {d.nquad} quadrature "
              f"points, eps_min {grid.eps_min:.4g}, set-up {t_setup:.2f} s"
              f"{'' if fresh else ' (grid reused)'}")
-    res = pf.solve(scene, grid, p.eps, start=start,
-                    options={**(solve_options or {}), 'pf_summary': True}, prefix=prefix,
-                    checks=True)
+    with warnings.catch_warnings():
+        # the run's summary says each once, on rank 0 (`summary`): a saddle, a change of
+        # topology; unused options are errors of their own (`-options_left`)
+        warnings.simplefilter('ignore', UserWarning)
+        res = pf.solve(scene, grid, p.eps, start=start,
+                       options={**(solve_options or {}), 'pf_summary': True}, prefix=prefix,
+                       checks=True)
     if p.modes >= 0 and res.converged:
         pf.stability(res, p.modes, options=modes_options, prefix=prefix)
     # The run's own clocks: reading the restart and adapting count too.
