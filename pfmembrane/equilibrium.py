@@ -171,7 +171,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
         history = np.array(problem.solver.history)
         factorizations = problem.solver.factorizations
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
-        problem_start = problem.settings.start
+        topology0 = start_topology(scene, start, problem.settings.start)
     setup = grid.setup_time if grid.setup_pending else 0.0
     adapt_f, adapt_band, adapt_time = (
         (grid.adapt_info['f'], grid.adapt_info['band'], grid.adapt_info['time'])
@@ -192,7 +192,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
                  stage2_linear_iterations=stats.get('stage2', {}).get('linear_iterations', -1),
                  factorizations=factorizations, adapt=adapt_f, adapt_band=adapt_band,
                  parent=start.path if start is not None else '',
-                 start_topology=start_topology(scene, start, problem_start),
+                 start_topology=topology0,
                  time_setup=setup, time_adapt=adapt_time,
                  time_stage1=stats.get('stage1', {}).get('time', np.nan),
                  time_stage2=stats.get('stage2', {}).get('time', np.nan),

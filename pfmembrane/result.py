@@ -21,7 +21,7 @@ def multiplier_names(attrs):
     highest = int(attrs.get('harmonics_highest', 0))
     if highest >= 1 and int(attrs.get('dihedral', 1)) == 1:
         names.append('nu_moment_x')
-    if len(attrs.get('harmonics', ())) > highest + 1:
+    if checkpoint.has_sines(attrs):
         names.append('nu_phase')
     return names
 

@@ -3,6 +3,7 @@ import math
 from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
+from pfmembrane.io.checkpoint import has_sines
 from pfmembrane.io.options import Targets, check_scene
 from pfmembrane.paper import SCENE
 from pfmembrane.starts import check_fits
@@ -67,4 +68,4 @@ class Scene(Targets):
                    box=tuple(float(b) for b in attrs['box']), branch=str(attrs['branch']),
                    symmetric=bool(attrs.get('symmetric', 0)), harmonics=highest,
                    dihedral=int(attrs.get('dihedral', 1)),
-                   mirror=len(attrs.get('harmonics', ())) <= highest + 1)  # sines: more
+                   mirror=not has_sines(attrs))

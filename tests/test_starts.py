@@ -239,7 +239,7 @@ def test_the_moebius_start_is_the_clifford_torus_inverted():
     # the unit inversion about (d, 0, 0) of the torus of radii 1 and sqrt 2: d = 0 is the
     # Clifford torus itself; d = 0.1, 0.2, 0.3 give the reduced volumes 0.743, 0.825,
     # 0.928 (published to three digits)
-    reduced = lambda d: initial._reduced_volume(*initial._inverted_clifford(d, 128)[2:])  # noqa: E731
+    reduced = lambda d: initial.reduced_volume(*initial._inverted_clifford(d, 128)[2:])  # noqa: E731
     assert abs(reduced(0.0) - CLIFFORD) < 1e-12
     for d, v in ((0.1, 0.743), (0.2, 0.825), (0.3, 0.928)):
         assert abs(reduced(d) - v) <= 5e-4

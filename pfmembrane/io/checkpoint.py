@@ -128,6 +128,12 @@ def locality(nodes, attrs, plane=None):
     return _locality(nodes, b['gamma'], b['spacing_smoothing'], plane, b['spacing_floor'])
 
 
+def has_sines(attrs):
+    """Whether attributes `attrs` describe sines beside the cosines: more
+    harmonics than the J + 1 cosines."""
+    return len(attrs.get('harmonics', ())) > int(attrs.get('harmonics_highest', 0)) + 1
+
+
 def harmonic_set(attrs, nh):
     """The `kernels.harmonics.Harmonics` of the nh columns of a version-2 phi
     with attributes `attrs`: its ``harmonics_highest`` J and ``dihedral`` n,

@@ -17,6 +17,11 @@ MOEBIUS_D_MAX = 0.35
 AXIS_ROUNDING = 16
 
 
+def reduced_volume(area, volume):
+    """v = V / (4/3 pi R^3) with R = sqrt(A / 4 pi)."""
+    return volume / (4.0 / 3.0 * np.pi * (area / (4.0 * np.pi)) ** 1.5)
+
+
 def spheroid_area(a, c):
     """Area of the spheroid with equatorial semi-axis a and polar semi-axis c."""
     if np.isclose(a, c, rtol=1e-12):
@@ -35,7 +40,7 @@ def spheroid_axes(area, volume, branch):
     volume above 1).
     """
     R = np.sqrt(area / (4.0 * np.pi))
-    v = volume / (4.0 / 3.0 * np.pi * R ** 3)
+    v = reduced_volume(area, volume)
     if v > 1.0 + 1e-12:
         raise ValueError(f"reduced volume {v:.6g} > 1: no closed surface has this area and volume")
     if v >= 1.0 - 1e-12:
@@ -135,9 +140,8 @@ def moebius_torus(area, volume, samples=256):
     the axis and its mirror plane z = 0. A non-axisymmetric torus whose
     Willmore energy stays 2 pi^2: E = pi^2 k at C0 = 0 (Marques and Neves).
     Raises ValueError for reduced volumes outside (0.7117, 0.98)."""
-    R = np.sqrt(area / (4.0 * np.pi))
-    v = volume / (4.0 / 3.0 * np.pi * R ** 3)
-    reduced = lambda d: _reduced_volume(*_inverted_clifford(d, 128)[2:])  # noqa: E731
+    v = reduced_volume(area, volume)
+    reduced = lambda d: reduced_volume(*_inverted_clifford(d, 128)[2:])  # noqa: E731
     low, high = reduced(0.0), reduced(MOEBIUS_D_MAX)
     if not low < v < high:
         raise ValueError(f"reduced volume {v:.6g} outside ({low:.5g}, {high:.5g}), the Moebius "
@@ -150,10 +154,6 @@ def moebius_torus(area, volume, samples=256):
     points = scale * (Y - [hole, 0.0, 0.0])
     normals = N / np.linalg.norm(N, axis=1)[:, None]
     return Cyclide(points, normals, d, scale, hole, cKDTree(points))
-
-
-def _reduced_volume(area, volume):
-    return volume / (4.0 / 3.0 * np.pi * (area / (4.0 * np.pi)) ** 1.5)
 
 
 def moebius_phi(points, cyclide, eps):
@@ -328,8 +328,7 @@ def pear_ratio(area, volume):
     """The pear's radius ratio: PEAR_RATIO, or where two touching spheres of that ratio
     enclose more than `volume` (reduced volume below 0.7384), the ratio whose touching
     spheres enclose it (1 at 1/sqrt 2, below which no two spheres do)."""
-    R = np.sqrt(area / (4.0 * np.pi))
-    v = volume / (4.0 / 3.0 * np.pi * R ** 3)
+    v = reduced_volume(area, volume)
     touching = lambda q: (1.0 + q ** 3) / (1.0 + q * q) ** 1.5  # noqa: E731
     if v >= touching(PEAR_RATIO) or v < touching(1.0):
         return PEAR_RATIO

@@ -25,6 +25,8 @@ class Assembly:
 
     # The stage-2 Jacobian is this matrix itself, factored (`jacobian_operator`).
     krylov = False
+    # where each constraint sits in the values (E, A, V, M, X[, Theta])
+    VALUE_INDEX = {'A': 1, 'V': 2, 'M': 3, 'X': 4, 'Theta': 5}
 
     def __init__(self, grid, eps, k, c0, targets, zc, forms=None, layout=None):
         self.grid, self.layout = grid, layout or grid.layout
@@ -37,9 +39,6 @@ class Assembly:
             local['X'] = self.forms.grad_X
         self.moments = tuple(local)
         self.targets = np.array([*targets] + [0.0 if m == 'M' else np.nan for m in local])
-        self.ncon = len(self.targets)
-        # where each constraint sits in the values (E, A, V, M, X)
-        self.constrained = np.array([1, 2] + [3 if m == 'M' else 4 for m in local])
         self.volume_box = np.pi * grid.box[0] ** 2 * grid.box[1]
         self._ghosted = self.layout.create_ghosted()
         self.grad_V = self._to_global(self.forms.grad_V)
@@ -91,11 +90,21 @@ class Assembly:
         X = self.grad_moments[self.moments.index('X')].dot(x) if 'X' in self.moments else 0.0
         return np.append(v, X)
 
+    @property
+    def ncon(self):
+        return len(self.targets)
+
+    @property
+    def constrained(self):
+        """Where the constraints (A, V, moments) sit in the values."""
+        return np.array([self.VALUE_INDEX[c] for c in ('A', 'V', *self.moments)])
+
     def hold(self, x):
         """Hold the rigid motions the moments pin where the start x puts them:
-        X's target (M's is 0, the scene's centre). Collective."""
+        X's target, X being linear in x (M's is 0, the scene's centre). Collective."""
         if 'X' in self.moments:
-            self.targets[self.moments.index('X') + 2] = self.values(x)[4]
+            j = self.moments.index('X')
+            self.targets[j + 2] = self.grad_moments[j].dot(x)
 
     def constraint_gradients(self, gA):
         """The constraints' gradients [grad A, grad V, moments...] given grad A."""

@@ -94,8 +94,6 @@ class HarmonicAssembly(Assembly):
             self.moments += ('Theta',)
             self.grad_moments.append(self.create_vec())
             self.targets = np.append(self.targets, 0.0)
-            self.constrained = np.append(self.constrained, 5)
-            self.ncon += 1
         self._state = None
         self._shift = 0.0
         self._J = None
