@@ -55,6 +55,7 @@ class Settings:
     start: str = 'auto'
     perturb: float = 0.02
     hessian: str = 'block'
+    refresh: float = 2.0
 
 
 def targets(radius, reduced_volume):
@@ -153,6 +154,9 @@ HELP = {
                'theta-averaged state: the preconditioner of GMRES on the exact action) | coupled '
                '(the exact one, every pair of harmonics: nh^2 times the entries, direct solves '
                'whose inertia is exact)',
+    'refresh': 'with harmonics and the block Hessian: a Newton step keeps the factored '
+               'preconditioner diag(H_m) until a Krylov solve needs more than REFRESH times the '
+               'iterations of the first solve on it (0: a new one at every step)',
     'stage1': 'augmented-Lagrangian inner solver: newton | tao (-stage1_tao_type) | none (restarts)',
     'mu': 'initial penalty mu of the augmented Lagrangian (0: 1e-5 newton, 1e-4 tao)',
     'stage1_rtol': 'relative constraint residual that ends stage 1',
@@ -323,6 +327,7 @@ def validate_settings(s, prefix=''):
     for name in ('stage1_rtol', 'stage2_rtol'):
         _require(0.0 < getattr(s, name) < 1.0, name, 'in (0, 1)', getattr(s, name), prefix)
     _require(s.mu >= 0, 'mu', '>= 0', s.mu, prefix)
+    _require(s.refresh >= 0, 'refresh', '>= 0', s.refresh, prefix)
     _require(s.stage1_max_it >= 1, 'stage1_max_it', '>= 1', s.stage1_max_it, prefix)
 
 

@@ -69,6 +69,28 @@ class Harmonics:
         return [('s' if s else 'c') + str(m) for m, s in zip(self.m, self.sine)]
 
 
+class SparseProducts:
+    """The four operators of a grid applied to multi-vectors (nlocal x nh or
+    nq x nh), by scipy: `forward` X -> (B0 X, Br X, Bz X, BL X), `adjoint`
+    {name: Y} -> sum of B^T Y over the names given. The transposes are built
+    once as CSR (scipy's CSC products are slower). Not collective; a faster
+    implementation of the same two methods may stand in (`HarmonicForms`)."""
+
+    NAMES = ('B0', 'Br', 'Bz', 'BL')
+
+    def __init__(self, ops):
+        self.ops = ops
+        self._BT = None
+
+    def forward(self, X):
+        return tuple(getattr(self.ops, name) @ X for name in self.NAMES)
+
+    def adjoint(self, Y):
+        if self._BT is None:
+            self._BT = {name: getattr(self.ops, name).T.tocsr() for name in self.NAMES}
+        return sum(self._BT[name] @ y for name, y in Y.items())
+
+
 def unknown_scale(nodes, h, harmonics):
     """s_aj = rho_a^-m_j, rho_a = sqrt(r_a^2 + h_a^2) (nodes x harmonics):
     chi = s x, x the solver's unknowns (module docstring)."""
@@ -86,14 +108,17 @@ class HarmonicForms:
     included: the unknowns chi / `scale` (`unknown_scale` of the local nodes;
     1 without); the Dirichlet value -1 belongs to the axisymmetric harmonic
     (the operators' offsets b0 ... enter it alone), the others vanish there.
+    `products` applies the operators to every harmonic at once
+    (`SparseProducts`, the default, or one with its two methods).
     """
 
-    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None, coupled=False, scale=None):
+    def __init__(self, ops, eps, k, c0, zc, harmonics, gram=None, coupled=False, scale=None,
+                 products=None):
         self.ops, self.eps, self.k, self.c0, self.zc = ops, eps, k, c0, zc
         self.scale = np.ones((ops.B0.shape[1], len(harmonics))) if scale is None else scale
         self.coupled = coupled   # `hessian` and `pattern`: the exact coupled Hessian
         self._gram = gram
-        self._BT = None
+        self.products = SparseProducts(ops) if products is None else products
         self.h = harmonics
         r, m = ops.r[:, None], harmonics.m[None, :]
         self.R = r ** m                                    # r^m
@@ -114,15 +139,11 @@ class HarmonicForms:
         self._interleaved = self._coupled = self._E = self._factors = None
 
     # -- fields ------------------------------------------------------------------
-    def _coefficients(self, chi):
-        o = self.ops
-        return o.B0 @ chi, o.Br @ chi, o.Bz @ chi, o.BL @ chi
-
     def fields(self, x, offsets=True):
         """u, u_r, u_z, (1/r) u_theta, Lap u of the unknowns x at the quadrature
         points x theta points, each (nq, n_theta); without `offsets` (a
         direction) no Dirichlet part."""
-        c, cr, cz, cl = self._coefficients(self.scale * np.reshape(x, self.shape))
+        c, cr, cz, cl = self.products.forward(self.scale * np.reshape(x, self.shape))
         T, dT, R, dR = self.h.T.T, self.h.dT.T, self.R, self.dR
         u = (R * c) @ T
         ur = (R * cr + dR * c) @ T
@@ -152,19 +173,15 @@ class HarmonicForms:
     def _adjoint(self, u=None, r=None, z=None, t=None, lap=None):
         """The transpose of chi -> (psi, psi_r, psi_z, psi_theta / r, Lap psi)
         at the quadrature points against the projections (u, r, z, t, lap)
-        (t against T_j'): one product per operator, by the operators'
-        transposes as CSR (built once: scipy's CSC products are slower)."""
+        (t against T_j'): one product per operator."""
         w, R, dR = self.w, self.R, self.dR
-        if self._BT is None:
-            o = self.ops
-            self._BT = {name: getattr(o, name).T.tocsr() for name in ('B0', 'Br', 'Bz', 'BL')}
-        out = 0.0
+        Y = {}
         for name, pairs in (('B0', ((R, u), (dR, r), (self.R1, t))), ('Br', ((R, r), (2 * dR, lap))),
                             ('Bz', ((R, z),)), ('BL', ((R, lap),))):
             given = [c * P for c, P in pairs if P is not None]
             if given:
-                out = out + self._BT[name] @ (w * sum(given))
-        return self.scale * out
+                Y[name] = w * sum(given)
+        return self.scale * self.products.adjoint(Y)
 
     # -- functionals ---------------------------------------------------------------
     def _integrals(self, u, ur, uz, ut, W):

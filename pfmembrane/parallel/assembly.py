@@ -181,10 +181,11 @@ class Assembly:
         K.setLGMap(PETSc.LGMap().create(lg, comm=self.comm))
         return K
 
-    def assemble_bordered(self, x, sigma, C, diag):
+    def assemble_bordered(self, x, sigma, C, diag, keep=False):
         """K = [[Hess E - sigma Hess A, -C^T], [-C, diag I]] at x.
 
-        Collective. C is the list of ncon constraint-gradient Vecs.
+        Collective. C is the list of ncon constraint-gradient Vecs. `keep`
+        concerns an assembly whose Jacobian is an action (`krylov`) alone.
         """
         K = self.bordered_matrix()
         lay, ncon = self.layout, self.ncon
@@ -222,6 +223,12 @@ class Assembly:
             P = self.local_pattern()
             self._pattern = (P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType))
         return self._pattern
+
+    def destroy(self):
+        """Free the PETSc objects built here."""
+        for obj in (self._K, self._ghosted):
+            if obj is not None:
+                obj.destroy()
 
     def shift_hessian(self, delta):
         """Add delta to the diagonal of the Hessian block of the bordered matrix."""

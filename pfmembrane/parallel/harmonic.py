@@ -15,6 +15,7 @@ from petsc4py import PETSc
 
 from pfmembrane.kernels.harmonics import HarmonicForms, unknown_scale
 from pfmembrane.parallel.assembly import Assembly
+from pfmembrane.parallel.multivector import MAIJProducts
 
 
 class Interleaved:
@@ -85,8 +86,9 @@ class HarmonicAssembly(Assembly):
         if grid.plane is not None and np.any(harmonics.sine):
             raise ValueError("sines with a half box: not supported")
         layout = Interleaved(grid.layout, unknown_scale(grid.nodes, grid.h, harmonics))
+        self.products = MAIJProducts(grid.ops, len(harmonics))
         forms = HarmonicForms(grid.ops, eps, k, c0, zc, harmonics, lambda: grid.gram, coupled,
-                              layout.local_scale())
+                              layout.local_scale(), self.products)
         self.harmonics, self.krylov = harmonics, not coupled
         super().__init__(grid, eps, k, c0, targets, zc, forms=forms, layout=layout)
         if np.any(harmonics.sine):
@@ -100,6 +102,12 @@ class HarmonicAssembly(Assembly):
 
     def local_pattern(self):
         return self.forms.pattern()
+
+    def destroy(self):
+        super().destroy()
+        self.products.destroy()
+        if self._J is not None:
+            self._J.destroy()
 
     def _full_box(self, v, x):
         """(E, A, V, M, X[, Theta]): with sines, the phase Theta (`hold`)."""
@@ -135,12 +143,17 @@ class HarmonicAssembly(Assembly):
     def max_abs_phi(self, x):
         return self.mpi.allreduce(self.forms.max_abs(self.local(x)), op=MPI.MAX)
 
-    def assemble_bordered(self, x, sigma, C, diag):
+    def assemble_bordered(self, x, sigma, C, diag, keep=False):
         """The bordered matrix (block-diagonal, or `coupled`), and the state
-        of the exact operator (`jacobian_operator`)."""
+        of the exact operator (`jacobian_operator`). `keep`: only the exact
+        operator moves to x; the bordered matrix, the Krylov solver's
+        preconditioner, stays as it is (unshifted: `Solver`), and so does its
+        factorization."""
         if self.krylov:
             self._state = (self.forms.linearization(self.local(x), sigma), C, diag)
         self._shift = 0.0
+        if keep:
+            return self.bordered_matrix()
         return super().assemble_bordered(x, sigma, C, diag)
 
     def shift_hessian(self, delta):

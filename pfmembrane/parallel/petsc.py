@@ -47,11 +47,15 @@ def libpetsc():
     return ctypes.CDLL(start().__file__)
 
 
+def c_int():
+    """The ctypes type of PetscInt."""
+    return ctypes.c_int64 if np.dtype(start().IntType).itemsize == 8 else ctypes.c_int32
+
+
 def options_left():
     """Names (lower case, without the dash) of the options nothing looked up."""
-    PETSc = start()
     lib = libpetsc()
-    pint = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+    pint = c_int()
     strings = ctypes.POINTER(ctypes.c_char_p)
     args = [ctypes.c_void_p, ctypes.POINTER(pint), ctypes.POINTER(strings),
             ctypes.POINTER(strings)]

@@ -232,6 +232,7 @@ class Problem:
                     analysis.destroy()
                 self._analyses.clear()
                 self.solver.destroy()
+                self.assembly.destroy()
         finally:
             self.options.close()
 

@@ -23,7 +23,11 @@ RESTART_DECREMENT = 1e-9
 RESTART_GTOL = 1e-6
 
 
-KRYLOV_RTOL = 1e-10   # stage 2's Krylov solver, where the Jacobian is an action
+# Where the Jacobian is an action (harmonics), GMRES solves each Newton step to
+# KRYLOV_RTOL. Near a bifurcation Newton needs the soft mode, which GMRES resolves
+# last: a looser forcing (1e-2, 1e-3, or Eisenstat-Walker's) took more Newton steps on
+# the three-fold scene of runs/harmonics/cost.py, 1e-6 the same as 1e-10.
+KRYLOV_RTOL = 1e-6
 KRYLOV_MAX_IT = 500
 
 
@@ -62,6 +66,7 @@ class Solver:
                                                 for m in problem.moments])
         self.nu = np.zeros(self.ncon)
         self._shift = 0.0  # Hessian shift that last made a stage-1 Newton step a descent
+        self._model_its = None  # Krylov iterations of the first solve on the model (`_keep`)
         self.factorizations = 0
         self._ksps = {}  # direct solvers by options prefix (`direct_ksp`)
         self.mpi = problem.mpi
@@ -81,6 +86,25 @@ class Solver:
         for li, ci in zip(lam, self.C):
             out.axpy(-li, ci)
         return out
+
+    def _keep(self, its):
+        """Whether the next Newton step keeps the factored model of an action
+        (`krylov`), given the Krylov iterations `its` of the last solve: yes
+        until a solve needs more than -pf_refresh times the iterations of the
+        first solve on it (the model, diag(H_m) at the theta-averaged state,
+        only preconditions the exact action, and its assembly and factorization
+        cost several GMRES iterations); no at the start of a stage
+        (`_model_its` None) and after a shift."""
+        if not (self.P.krylov and self.p.refresh > 0 and self._model_its is not None):
+            self._model_its = 0
+            return False
+        if self._model_its == 0:  # the first solve on a fresh model
+            self._model_its = max(its, 1)
+            return True
+        if its <= self.p.refresh * self._model_its:
+            return True
+        self._model_its = 0
+        return False
 
     def least_squares_multipliers(self):
         """nu minimizing |grad E - C^T nu|: keeps the initial guess on its branch."""
@@ -155,6 +179,7 @@ class Solver:
         rhs, sol = K.createVecs()
         g, d, xt = x.duplicate(), x.duplicate(), x.duplicate()
         nl = P.layout.nowned
+        self._model_its = None
         for it in range(max_it):
             vals, res = self.evaluate(x)
             lam = self.nu - res / mu
@@ -164,7 +189,8 @@ class Solver:
             if gtol is not None and gnorm <= gtol:
                 return it
             La = self._augmented(vals, res, mu)
-            P.assemble_bordered(x, lam[0], self.C, -mu)
+            kept = not self._shift and self._keep(ksp.getIterationNumber())
+            P.assemble_bordered(x, lam[0], self.C, -mu, keep=kept)
             # Hess L_A may be indefinite away from the minimizer: shift it (Nocedal-Wright
             # 3.4), first by a quarter of the shift that last sufficed, then by factors
             # SHIFT_GROWTH from a tenth of the mean diagonal. The factorization's inertia
@@ -178,7 +204,8 @@ class Solver:
                 rhs.zeroEntries()
                 rhs.getArray()[:nl] = -g.getArray(readonly=True)
                 ksp.solve(rhs, sol)
-                self.factorizations += 1
+                self.factorizations += not kept
+                kept = False  # a shift changes the model
                 # the factored model's inertia is not the exact Hessian's: with an
                 # action (krylov) only the descent test stands
                 nneg = None if P.krylov else self.negative_pivots(ksp)
@@ -197,6 +224,8 @@ class Solver:
                     shift = SHIFT_GROWTH * applied if applied else 0.1 * scale
                 P.shift_hessian(shift - applied)
                 applied = shift
+            if applied:
+                self._model_its = None  # a shifted model is rebuilt at the next step
             if decrement is not None and not applied and -slope <= 2 * decrement * abs(La):
                 return it
             self._shift = applied / 4 if applied > 1e-3 * scale else 0.0
@@ -299,10 +328,12 @@ class Solver:
         def jacobian(snes, XX, J, Pm):
             nu = unpack(XX)
             self.evaluate(xx)  # grad A at this X: the last residual may have been elsewhere
-            self.factorizations += 1
-            P.assemble_bordered(xx, nu[0], self.C, 0.0)
+            keep = self._keep(snes.getKSP().getIterationNumber())
+            self.factorizations += not keep
+            P.assemble_bordered(xx, nu[0], self.C, 0.0, keep=keep)
 
         snes = PETSc.SNES().create(P.comm)
+        self._model_its = None
         snes.setOptionsPrefix(self.prefix + 'stage2_')
         snes.setFunction(residual, F)
         snes.setJacobian(jacobian, P.jacobian_operator(), K)

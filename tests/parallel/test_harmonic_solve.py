@@ -72,6 +72,20 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric, 
     assert r.attrs['level_set_energy'] == pytest.approx(axi.attrs['level_set_energy'], rel=2e-3)
 
 
+def test_a_kept_preconditioner_reaches_the_same_equilibrium(axisymmetric, pushed):
+    """-pf_refresh 0 assembles and factors the block preconditioner at every Newton
+    step; the default keeps it while GMRES converges as fast: the same steps, the same
+    equilibrium, fewer factorizations."""
+    grid, _ = axisymmetric
+    fresh = pf.solve(dataclasses.replace(SCENE, harmonics=2, dihedral=2), grid, EPS,
+                     options={'pf_refresh': 0})
+    assert fresh.converged
+    assert fresh.energy == pytest.approx(pushed.energy, rel=1e-10)
+    # the same shape, or the same turned by 90 degrees (the critical mode's sign)
+    assert min(np.abs(fresh.phi * [1, s, 1] - pushed.phi).max() for s in (1, -1)) < 1e-6
+    assert fresh.attrs['factorizations'] > pushed.attrs['factorizations']
+
+
 def test_a_non_axisymmetric_branch_is_followed_in_v(pushed):
     # pseudo-arclength continuation of the m = 2 state (with the exact coupled Hessian,
     # which a branch with harmonics takes): along a branch dE/dv = nu_V dV0/dv (A0

@@ -12,7 +12,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from pfmembrane.kernels import nodes
-from pfmembrane.kernels.harmonics import Harmonics
+from pfmembrane.kernels.harmonics import Harmonics, SparseProducts
 from pfmembrane.kernels.initial import spheroid_axes, spheroid_phi
 from pfmembrane.parallel.assembly import Assembly
 from pfmembrane.parallel.discretization import Discretization
@@ -63,6 +63,22 @@ def _direction(P, seed):
     full = np.random.default_rng(seed).standard_normal(P.layout.nglobal)
     d.setArray(full[P.layout.start:P.layout.start + P.layout.nowned])
     return d
+
+
+def test_the_maij_products_are_scipys(problem):
+    """PETSc's MAIJ kernels (the assembly's products) against scipy's, every operator
+    forward and the summed transposes, on this rank's operators."""
+    P, _, _ = problem
+    ops, nh = P.forms.ops, len(P.harmonics)
+    reference = SparseProducts(ops)
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((ops.B0.shape[1], nh))
+    for a, b in zip(P.products.forward(X), reference.forward(X)):
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(b).max()
+    Y = {name: rng.standard_normal((ops.B0.shape[0], nh)) for name in ('B0', 'Bz', 'BL')}
+    a, b = P.products.adjoint(Y), reference.adjoint(Y)
+    assert a.shape == b.shape == X.shape
+    assert np.abs(a - b).max() <= 1e-13 * np.abs(b).max()
 
 
 def test_the_axisymmetric_set_is_the_axisymmetric_assembly():
