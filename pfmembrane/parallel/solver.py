@@ -29,6 +29,9 @@ RESTART_GTOL = 1e-6
 # the three-fold scene of runs/harmonics/cost.py, 1e-6 the same as 1e-10.
 KRYLOV_RTOL = 1e-6
 KRYLOV_MAX_IT = 500
+# GMRES's restart there: with the default 30 it stagnated on a prolate across the axis
+# with m up to 12 (runs/harmonics/across.py), where the theta-averaged model is poor.
+KRYLOV_RESTART = 200
 
 
 class SolveError(Exception):
@@ -388,6 +391,7 @@ class Solver:
             # the operator is the exact Hessian's action, the factored matrix its
             # block-diagonal model: GMRES to a tight tolerance keeps Newton quadratic
             ksp.setType(PETSc.KSP.Type.GMRES)
+            ksp.setGMRESRestart(KRYLOV_RESTART)
             ksp.setTolerances(rtol=KRYLOV_RTOL, max_it=KRYLOV_MAX_IT)
         else:
             ksp.setType(PETSc.KSP.Type.PREONLY)
