@@ -3,12 +3,13 @@
 A field with nh harmonics is a rank-local array of nh interleaved columns (node
 a, harmonic j at nh a + j), and B applied to each column is the product of
 MATMAIJ: the operator B (quadrature points x local nodes) acting on dof = nh
-interleaved components, with kernels unrolled in the components. It stands in
-for `kernels.harmonics.SparseProducts`, which the Krylov solver's Hessian
-actions spend most of their time in (runs/harmonics/cost.md holds the timings).
-petsc4py wraps neither MatCreateMAIJ nor a Mat from its handle, so the MAIJ
-matrices are handles on the PETSc library (`petsc.libpetsc`), destroyed by
-`destroy`. Not collective: every matrix lives on PETSC_COMM_SELF.
+interleaved components, with kernels unrolled in the components, where scipy's
+multi-vector product runs at about the speed of nh single ones. It stands in for
+`kernels.harmonics.SparseProducts` in the Hessian actions of the Krylov solver,
+which spend most of their time in these products. petsc4py wraps neither
+MatCreateMAIJ nor a Mat from its handle, so the MAIJ matrices are handles on the
+PETSc library (`petsc.libpetsc`), destroyed by `destroy`. Not collective: every
+matrix lives on PETSC_COMM_SELF.
 """
 import ctypes
 
@@ -21,8 +22,8 @@ from pfmembrane.parallel.petsc import c_int, libpetsc, start
 class MAIJProducts:
     """`SparseProducts` of the operators `ops` for nh harmonics, by MATMAIJ
     products: B X for each operator, and sum B^T Y through the transposes
-    (stored as AIJ: MAIJ's own transposed product scatters, about 1.2 times
-    slower)."""
+    (stored as AIJ: MAIJ's own transposed product scatters and is slower).
+    The forward AIJ matrices share the operators' arrays."""
 
     def __init__(self, ops, nh):
         PETSc = start()
@@ -32,8 +33,9 @@ class MAIJProducts:
             B = getattr(ops, name)
             for key, M in ((name, B), (name + 'T', B.T.tocsr())):
                 A = PETSc.Mat().createAIJWithArrays(
-                    M.shape, (M.indptr.astype(PETSc.IntType), M.indices.astype(PETSc.IntType),
-                              M.data), comm=PETSc.COMM_SELF)
+                    M.shape, (M.indptr.astype(PETSc.IntType, copy=False),
+                              M.indices.astype(PETSc.IntType, copy=False), M.data),
+                    comm=PETSc.COMM_SELF)
                 handle = ctypes.c_void_p()
                 self._call('MatCreateMAIJ', ctypes.c_void_p(A.handle), c_int()(nh),
                            ctypes.byref(handle))
