@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from pfmembrane.sharp import solver as sharp
-from pfmembrane.io.options import STARTS, STARTS_3D, UsageError
+from pfmembrane.io.options import STARTS, STARTS_3D, UsageError, targets
 from pfmembrane.kernels.initial import construction, extent
 from pfmembrane.kernels.functionals import F_E
 from pfmembrane.kernels.nodes import nodal_spacing, uniform
@@ -34,7 +34,7 @@ def extents(branch, v, radius, c0=0.0, k=1.0):
         and for each constructed start of the branch (``spheroid``, ``torus``,
         ``spheres``: `kernels.initial.construction`), its half-sizes.
     """
-    area, volume = 4.0 * math.pi * radius ** 2, v * 4.0 / 3.0 * math.pi * radius ** 3
+    area, volume = targets(radius, v)
     sizes = {kind: extent(kind, construction(kind, branch, area, volume))
              for kind in STARTS[branch] if kind not in ('sharp', *STARTS_3D)}
     if branch not in sharp.BRANCHES:

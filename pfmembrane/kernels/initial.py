@@ -227,7 +227,7 @@ def two_spheres(area, volume, ratio=1.0):
     touching = _spheres(lo, ratio * lo, (1.0 + ratio) * lo)[1]
     if volume < touching * (1.0 - 1e-12):
         raise ValueError(f"two spheres of radius ratio {ratio:g} enclose at least reduced volume "
-                         f"{touching / (4.0 / 3.0 * np.pi * R ** 3):.5g}")
+                         f"{reduced_volume(area, touching):.5g}")
 
     def separation(rho1):  # the distance of the centres that gives the area
         rho2 = ratio * rho1

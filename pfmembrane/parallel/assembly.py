@@ -184,10 +184,13 @@ class Assembly:
     def assemble_bordered(self, x, sigma, C, diag, keep=False):
         """K = [[Hess E - sigma Hess A, -C^T], [-C, diag I]] at x.
 
-        Collective. C is the list of ncon constraint-gradient Vecs. `keep`
-        concerns an assembly whose Jacobian is an action (`krylov`) alone.
+        Collective. C is the list of ncon constraint-gradient Vecs. `keep`:
+        K stays as it is, and so does its factorization (where the Jacobian
+        is an action, `krylov`, K only preconditions it: `Solver`).
         """
         K = self.bordered_matrix()
+        if keep:
+            return K
         lay, ncon = self.layout, self.ncon
         with self.log['Hessian']:
             H = self.forms.hessian(self.local(x), sigma)

@@ -145,16 +145,12 @@ class HarmonicAssembly(Assembly):
 
     def assemble_bordered(self, x, sigma, C, diag, keep=False):
         """The bordered matrix (block-diagonal, or `coupled`), and the state
-        of the exact operator (`jacobian_operator`). `keep`: only the exact
-        operator moves to x; the bordered matrix, the Krylov solver's
-        preconditioner, stays as it is (unshifted: `Solver`), and so does its
-        factorization."""
+        of the exact operator (`jacobian_operator`), which moves to x also
+        where the matrix is kept."""
         if self.krylov:
             self._state = (self.forms.linearization(self.local(x), sigma), C, diag)
         self._shift = 0.0
-        if keep:
-            return self.bordered_matrix()
-        return super().assemble_bordered(x, sigma, C, diag)
+        return super().assemble_bordered(x, sigma, C, diag, keep)
 
     def shift_hessian(self, delta):
         """Shift the model's diagonal and the exact action alike."""
