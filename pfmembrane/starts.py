@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from pfmembrane.io import checkpoint
 from pfmembrane.io.options import SHAPE_NAMES, STARTS_3D, UsageError, start_kind
 from pfmembrane.kernels import initial
 from pfmembrane.kernels.adapt import transfer
@@ -123,10 +124,30 @@ def start_phi(scene, grid, eps, start, shape='auto', perturb=0.0):
     phi = initial.rescaled_phi(phi, start.eps, eps)
     if phi.ndim == 1:
         return lifted(phi, grid.nodes, scene, perturb), start.nu, start.converged
-    if phi.shape[1] != len(scene.harmonic_set):
+    if 'harmonics_highest' in start.attrs:
+        phi = widened(phi, checkpoint.harmonic_set(start.attrs, phi.shape[1]), scene,
+                      start.path)
+    elif phi.shape[1] != len(scene.harmonic_set):
         raise UsageError(f"the start {start.path or ''} holds {phi.shape[1]} harmonics, the "
                          f"scene {len(scene.harmonic_set)}")
     return phi, start.nu, start.converged
+
+
+def widened(phi, harmonics, scene, path=''):
+    """Nodal harmonics `phi` (nodes x len(harmonics)) as the scene's harmonics:
+    the same columns where the sets agree, the scene's others at 0 (a start
+    with fewer harmonics, as when the highest harmonic grows). Raises
+    UsageError where the start holds a harmonic the scene has not."""
+    have, want = harmonics.labels(), scene.harmonic_set.labels()
+    if have == want:
+        return phi
+    missing = [label for label in have if label not in want]
+    if missing:
+        raise UsageError(f"the start {path} holds the harmonics {', '.join(missing)}, which "
+                         f"the scene's ({', '.join(want)}) do not include")
+    out = np.zeros((len(phi), len(want)))
+    out[:, [want.index(label) for label in have]] = phi
+    return out
 
 
 def lifted(phi, nodes, scene, perturb):

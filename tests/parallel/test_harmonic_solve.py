@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import pfmembrane as pf
+from pfmembrane.io.options import UsageError
 
 pytestmark = pytest.mark.slow
 SCENE = pf.Scene(reduced_volume=0.8, branch='oblate')
@@ -126,3 +127,18 @@ def test_with_sines_a_turned_state_is_the_same_equilibrium(pushed):
     assert abs(r.nu[-1]) < 1e-6 * abs(r.nu[0])  # nu_phase: the turn costs nothing
     assert np.abs(r.phi - turned).max() < 1e-6 * np.abs(turned).max()
     assert pf.stability(r) == 0
+
+
+def test_a_start_with_fewer_harmonics_starts_the_others_at_zero(pushed):
+    # m = 0, 2, 4 solved, then m = 0, 2, 4, 6 from it: the first iterate is the same field
+    # (chi_6 = 0, so the same energy), and the larger space's equilibrium lies below it
+    scene = dataclasses.replace(SCENE, harmonics=3, dihedral=2)
+    r = pf.solve(scene, pushed.grid, EPS, start=pushed, options={'pf_stage1': 'none'})
+    assert r.converged and list(r.attrs['harmonics']) == [0, 2, 4, 6]
+    assert r.attrs['energy_history'][0] == pytest.approx(pushed.energy, rel=1e-12)
+    assert r.energy < pushed.energy
+    assert np.abs(r.phi[:, 3]).max() > 0.0
+    # a start whose harmonics the scene lacks (m = 2, 4 against m = 0, 3, 6)
+    with pytest.raises(UsageError, match="c2, c4"):
+        pf.solve(dataclasses.replace(SCENE, harmonics=2, dihedral=3), pushed.grid, EPS,
+                 start=pushed)
