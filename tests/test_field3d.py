@@ -1,10 +1,14 @@
 """The 3D field of nodal harmonics (analysis.field3d): its gradient and Hessian
 against central differences of its values, and the level set of a max-ent sphere
-and of a torus: their topology and Canham-Helfrich energy."""
+and of a torus: their topology and Canham-Helfrich energy, and the checks of a
+torus (analysis.checks.surface_checks)."""
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
+from mpi4py import MPI
+
 from pfmembrane.analysis import field3d
+from pfmembrane.analysis.checks import surface_checks
 from pfmembrane.kernels import nodes
 from pfmembrane.kernels.basis import locality
 
@@ -63,14 +67,48 @@ def test_a_maxent_sphere_is_one_sphere_of_energy_2_pi():
     assert abs(m.energy / (2 * np.pi) - 1) < 1e-3
 
 
+TORUS_BOX, TORUS_ZC, TUBE, CENTRE = (0.8, 1.0), 0.5, 0.15, 0.4
+
+
+def _torus(xy):
+    return np.tanh((TUBE - np.hypot(xy[:, 0] - CENTRE, xy[:, 1] - TORUS_ZC))
+                   / (np.sqrt(2) * EPS))
+
+
+def _torus_energy():
+    """(k/2) int H^2 dA of the torus of radii (CENTRE, TUBE)."""
+    return 0.5 * np.pi ** 2 * CENTRE ** 2 / (TUBE * np.sqrt(CENTRE ** 2 - TUBE ** 2))
+
+
 def test_a_half_box_torus_is_one_torus():
-    box, zc = (0.8, 1.0), 0.5
-    a, b = 0.15, 0.4
-    f = _maxent(box, lambda xy: np.tanh((a - np.hypot(xy[:, 0] - b, xy[:, 1] - zc))
-                                        / (np.sqrt(2) * EPS)), plane=zc)
+    box, zc = TORUS_BOX, TORUS_ZC
+    f = _maxent(box, _torus, plane=zc)
     m = field3d.measure(f, box, EPS, k=1.0, c0=0.0)
     assert (m.components, m.genus) == (1, 1)
-    exact = 0.5 * np.pi ** 2 * b ** 2 / (a * np.sqrt(b ** 2 - a ** 2))
+    exact = _torus_energy()
     # measured +3.2e-3: step eps / 2 is a / 7.5 across the tube, and the max-ent level
     # set's radii differ from (a, b) by about 1e-3
     assert abs(m.energy / exact - 1) < 5e-3
+
+
+def test_the_checks_take_a_torus_with_its_own_energy():
+    """A torus is not put on the scene's constraints (whatever its reduced
+    volume, here the scene's differs from the torus's): its level-set energy is
+    its surface's, at the finer marching step, as the axisymmetric checks take
+    a torus's loop (`levelset.loop_energy`)."""
+    xy = nodes.uniform(TORUS_BOX, 3000, half=True)
+    beta = locality(xy, 0.8, 3, TORUS_ZC)
+    attrs = dict(harmonics=np.array([0]), harmonics_highest=0, dihedral=1, eps=EPS,
+                 box=np.array(TORUS_BOX), symmetric=1, k=1.0, c0=0.0, radius=0.4,
+                 reduced_volume=0.8, gamma=0.8, cutoff=1e-6)
+    checks = surface_checks(MPI.COMM_SELF, xy, _torus(xy)[:, None], attrs, beta)
+    assert checks['topology'] == '1 torus' and checks['genus'] == 1
+    f = field3d.Harmonic3D.of(xy, _torus(xy)[:, None], [0], [False], TORUS_BOX, EPS, beta,
+                              1e-6, TORUS_ZC)
+    fine = field3d.measure(f, TORUS_BOX, EPS, 1.0, 0.0, field3d.MARCH * EPS / 2)
+    coarse = field3d.measure(f, TORUS_BOX, EPS, 1.0, 0.0)
+    assert checks['level_set_energy'] == fine.energy
+    assert checks['level_set_error'] == abs(fine.energy - coarse.energy)
+    assert np.isnan(checks['level_set_level'])
+    # the marching step's error at eps / 4, and the max-ent level set's radii
+    assert abs(checks['level_set_energy'] / _torus_energy() - 1) < 5e-3

@@ -73,23 +73,32 @@ def surface_checks(mpi, xy, phi, attrs, beta):
     (`analysis.field3d`): ``components``, ``genus`` (the sum over the
     components, from their Euler characteristics), ``topology`` ('1 sphere',
     '1 torus', '2 spheres' ... by component and genus) and ``level_set_energy``
-    (its Canham-Helfrich energy, each component with its orientation, put on
-    the scene's area and volume by `field3d.projected`: the level
-    ``level_set_level`` with the scene's reduced volume, scaled;
-    ``level_set_error`` its change with the marching step), with ``level_set_area``, ``level_set_volume`` and
-    ``level_set_step`` (the finer marching step). Rank 0 computes."""
+    with ``level_set_error`` its change with the marching step, by the rule of
+    the axisymmetric checks (`phase_field_checks`): one sphere is put on the
+    scene's area and volume (`field3d.projected`: the level
+    ``level_set_level`` with the scene's reduced volume, scaled; NaN where
+    there is none), any other surface has its own Canham-Helfrich energy, each
+    component with its orientation (`levelset.loop_energy`'s reason: at C0 = 0
+    a torus's energy depends on its reduced volume alone, and near the
+    Clifford torus's conformal family only to second order); with
+    ``level_set_area``, ``level_set_volume`` and ``level_set_step`` (the finer
+    marching step). Rank 0 computes."""
     result = {}
     if mpi.Get_rank() == 0:
         field, box, eps = field3d.of_checkpoint(checkpoint.Checkpoint(xy, phi, attrs), beta)
-        m = field3d.measure(field, box, eps, float(attrs['k']), float(attrs['c0']),
-                            field3d.MARCH * eps / 2)
-        _, energy, bar, level = field3d.projected(field, box, eps, float(attrs['k']),
-                                                  float(attrs['c0']), float(attrs['radius']),
-                                                  float(attrs['reduced_volume']))
+        k, c0 = float(attrs['k']), float(attrs['c0'])
+        m = field3d.measure(field, box, eps, k, c0, field3d.MARCH * eps / 2)
+        if (m.components, m.genus) == (1, 0):
+            _, energy, bar, level = field3d.projected(field, box, eps, k, c0,
+                                                      float(attrs['radius']),
+                                                      float(attrs['reduced_volume']))
+        else:
+            coarse = field3d.measure(field, box, eps, k, c0)
+            energy, bar, level = m.energy, abs(m.energy - coarse.energy), np.nan
         kinds = ['torus' if p['genus'] == 1 else 'sphere' if p['genus'] == 0
                  else f"genus-{p['genus']:g} surface" for p in m.per_component]
-        label = ', '.join(f"{kinds.count(k)} {k}{'s' if kinds.count(k) > 1 else ''}"
-                          for k in dict.fromkeys(kinds)) or 'no surface'
+        label = ', '.join(f"{kinds.count(kind)} {kind}{'s' if kinds.count(kind) > 1 else ''}"
+                          for kind in dict.fromkeys(kinds)) or 'no surface'
         result.update(components=m.components, genus=m.genus, topology=label,
                       level_set_energy=energy, level_set_error=bar, level_set_level=level,
                       level_set_area=m.area, level_set_volume=m.volume,

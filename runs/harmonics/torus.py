@@ -1,19 +1,24 @@
 """Genus one beyond the Clifford torus: the Moebius images of the Clifford torus (Willmore
 energy 2 pi^2, E = pi^2 k at C0 = 0 for every reduced volume from 0.7116 to about 0.99) are
-not axisymmetric, so only harmonics reach them. Each solve starts from the image with the
-scene's reduced volume (-pf_start moebius: its hole on the axis), with the harmonics
-m = 0, 1, ..., J (-pf_dihedral 1, cosines: the mirror plane through the hole's centre; the
-half box: the mirror z = zc), the moment X holding the translation across the axis; against
-it, the axisymmetric torus on the same grid (from the circular tube). Under mpiexec; the
-table is rewritten after every solve.
+not axisymmetric, so only harmonics reach them. The harmonics are m = 0, 1, ..., J
+(-pf_dihedral 1, cosines: the mirror plane through the hole's centre; the half box: the
+mirror z = zc), the moment X holding the translation across the axis. At the first eps the
+first J starts from the image with the scene's reduced volume (-pf_start moebius: its hole
+on the axis), each next J from the last converged one, its harmonics kept and the new ones
+at 0 (--no-continued: every J from the image); at each further eps the largest J alone, from
+the last converged state at the eps before. Against them, the axisymmetric torus on the same
+grid and eps (from the circular tube). Under mpiexec; the table is rewritten after every
+solve.
 
-    mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8] [--eps 0.04]
-        [--hessian coupled] [--until HH:MM] [--out runs/harmonics/torus.md]
+    mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
+        [--eps 0.04,0.03] [--hessian coupled] [--no-continued] [--until HH:MM]
+        [--out runs/harmonics/torus.md]
 """
 import argparse
 import dataclasses
 import os
 import sys
+import time
 
 import numpy as np
 
@@ -34,6 +39,8 @@ def main(argv=None):
     ap.add_argument('--eps', default='0.04')
     ap.add_argument('--hessian', default='coupled', help='-pf_hessian of the harmonic solves')
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
+    ap.add_argument('--no-continued', dest='continued', action='store_false',
+                    help='every J from the Moebius image')
     ap.add_argument('--out', default=os.path.join(HERE, 'torus.md'))
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
@@ -43,34 +50,46 @@ def main(argv=None):
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=BOX, symmetric=True)
         grid = pf.Grid.uniform(scene, nodes=NODES)
-        for eps in map(float, args.eps.split(',')):
-            rows.append(solved(v, eps, 0, lambda: pf.solve(scene, grid, eps, checks=True)))
-            for J in map(int, args.highest.split(',')):
+        previous = None
+        for n, eps in enumerate(map(float, args.eps.split(','))):
+            t = time.perf_counter()
+            axi = pf.solve(scene, grid, eps, checks=True)
+            rows.append(row(v, eps, 0, 'circular tube', axi, time.perf_counter() - t))
+            highest = [int(J) for J in args.highest.split(',')]
+            for J in highest if n == 0 else highest[-1:]:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
-                    rows.append([v, eps, J, 'skipped (deadline)'] + [''] * 9)
+                    rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 10)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
-                rows.append(solved(v, eps, J, lambda: pf.solve(
-                    harmonic, grid, eps, checks=True,
-                    options={'pf_start': 'moebius', 'pf_hessian': args.hessian})))
+                options = {'pf_hessian': args.hessian}
+                if previous is None:
+                    options['pf_start'] = 'moebius'
+                began = ('Moebius' if previous is None else
+                         f"J = {previous.attrs['harmonics_highest']}, eps {previous.eps:g}")
+                t = time.perf_counter()
+                r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
+                rows.append(row(v, eps, J, began, r, time.perf_counter() - t))
+                if args.continued and r.converged:
+                    previous = r
                 if mpi.Get_rank() == 0:
                     write(args, record, rows)
     if mpi.Get_rank() == 0:
         write(args, record, rows)
 
 
-def solved(v, eps, J, solve):
-    """One table row: the solve's energies against pi^2, its topology, the X multiplier."""
-    r = solve()
+def row(v, eps, J, began, r, seconds):
+    """One table row: the solve's energies against pi^2, its topology, the X
+    multiplier, its wall time."""
     if not r.converged:
-        return [v, eps, J or 'axisymmetric', f"not converged ({r.message})"] + [''] * 9
+        return [v, eps, J or 'axisymmetric', began, f"not converged ({r.message})"] + \
+            [''] * 9 + [f"{seconds:.0f}"]
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
-    return [v, eps, J or 'axisymmetric', f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
+    return [v, eps, J or 'axisymmetric', began, f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
             f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", r.attrs.get('topology', '-'),
             genus if genus == '' else int(genus), tube(r, 0.0), tube(r, np.pi),
             f"{r.attrs['nu_moment_x']:.4g}" if J else '',
-            f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}"]
+            f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}", f"{seconds:.0f}"]
 
 
 def tube(r, theta):
@@ -87,20 +106,26 @@ def tube(r, theta):
 
 def write(args, record, rows):
     lines = report.header('Genus one: the Moebius tori against the axisymmetric torus', record)
+    start = ("at the first eps the first J from -pf_start moebius, each next from the last "
+             "converged J (its harmonics, the new ones at 0), at each further eps the largest J "
+             "alone from the last converged state" if args.continued
+             else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {BOX[0]} x {BOX[1]} as a half box, {NODES} nodes of the "
-              "full box (the paper's spacing), 2 ranks; harmonics m = 0, 1, ..., J from "
-              f"-pf_start moebius, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
+              "full box (the paper's spacing), 2 ranks; harmonics m = 0, 1, ..., J, "
+              f"{start}, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
               "energy of genus one at these v (sharp, exact). Level-set E: the energy of the "
-              "surface phi_h = 0 (the curve of revolution for the axisymmetric torus, the "
-              "3D surface with harmonics) put on the constraints. nu_X: the multiplier of "
+              "surface phi_h = 0 as it is (the curve of revolution for the axisymmetric torus, "
+              "the 3D surface with harmonics), a torus not being put on the constraints: at C0 "
+              "= 0 its energy depends on its reduced volume alone, near the Clifford torus's "
+              "conformal family only to second order. nu_X: the multiplier of "
               "the moment across the axis; it vanishes where the translation is a symmetry "
               "of the discrete problem, so it measures what the truncation at J costs. Tube: "
               "the nodes of the mirror plane z = zc where the nodal phi > 0 at theta = 0 and "
               "pi, the section of the tube on either side of the axis; the start's is "
               "lopsided, its hole's centre on the axis.", '']
-    lines += report.table(['v', 'eps', 'J', 'E', 'E / pi^2 - 1', 'level-set E',
+    lines += report.table(['v', 'eps', 'J', 'from', 'E', 'E / pi^2 - 1', 'level-set E',
                            'vs pi^2', 'topology', 'genus', 'tube at theta = 0 (r)',
-                           'at theta = pi', 'nu_X', 'Newton its (1/2)'], rows)
+                           'at theta = pi', 'nu_X', 'Newton its (1/2)', 'wall s'], rows)
     report.write(args.out, lines)
 
 
