@@ -19,7 +19,8 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
     ``feature_kind``) and, for one sphere, the level set's own energy
     (`levelset.level_set_energy`) and, where the scene has a sharp-interface
     shape, the energy error and level-set distance against it, or for one
-    torus its own energy and radii (`levelset.loop_energy`), or for any other
+    torus its own energy and radii (`levelset.loop_energy`) with its area and
+    volume (``level_set_area``, ``level_set_volume``), or for any other
     topology the sum of its components' energies (`levelset.components_energy`;
     NaN with a piece through the box) and, for several, ``component_energies``,
     as attributes; where no comparison was possible, why in ``sharp_note``.
@@ -44,7 +45,9 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
                 pass  # no feature of this curve: the checks below do not need it
             if shape['label'] == '1 torus':   # no sharp torus to compare: its own energy
                 energy, radii = levelset.loop_energy(ckpt, curve[0], field_h)
-                result.update(level_set_energy=energy, torus_radii=np.asarray(radii))
+                result.update(level_set_energy=energy, torus_radii=np.asarray(radii),
+                              level_set_area=levelset.revolved_area(curve),
+                              level_set_volume=levelset.enclosed_volume(curve))
             elif shape['label'] != '1 sphere':  # several components: the sum of their own
                 energy, parts = levelset.components_energy(ckpt, curve, field_h)
                 result['level_set_energy'] = energy

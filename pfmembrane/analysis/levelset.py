@@ -704,6 +704,18 @@ def enclosed_volume(curve):
     return total
 
 
+def revolved_area(curve):
+    """Area of the surface of revolution of a level set: 2 pi int r ds over
+    its polylines (`level_set`), exact for straight segments (frusta), a
+    loop closed. Not collective."""
+    total = 0.0
+    for piece in curve:
+        loop = piece[0, 0] > 0 and not np.allclose(piece[0], piece[-1])
+        r, z = (np.vstack([piece, piece[:1]]) if loop else piece).T
+        total += np.pi * np.sum((r[1:] + r[:-1]) * np.hypot(np.diff(r), np.diff(z)))
+    return total
+
+
 def compare(ckpt, samples=LEVEL_SET_SAMPLES, field=None, curve=None):
     """Energy and shape of a checkpoint against its sharp-interface limit.
 

@@ -58,7 +58,7 @@ def main(argv=None):
             highest = [int(J) for J in args.highest.split(',')]
             for J in highest if n == 0 else highest[-1:]:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
-                    rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 10)
+                    rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 11)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
                 options = {'pf_hessian': args.hessian}
@@ -82,14 +82,22 @@ def row(v, eps, J, began, r, seconds):
     multiplier, its wall time."""
     if not r.converged:
         return [v, eps, J or 'axisymmetric', began, f"not converged ({r.message})"] + \
-            [''] * 9 + [f"{seconds:.0f}"]
+            [''] * 10 + [f"{seconds:.0f}"]
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
     return [v, eps, J or 'axisymmetric', began, f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
-            f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", r.attrs.get('topology', '-'),
+            f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", reduced(r), r.attrs.get('topology', '-'),
             genus if genus == '' else int(genus), tube(r, 0.0), tube(r, np.pi),
             f"{r.attrs['nu_moment_x']:.4g}" if J else '',
             f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}", f"{seconds:.0f}"]
+
+
+def reduced(r):
+    """The reduced volume 6 sqrt(pi) V / A^1.5 of the level set phi_h = 0."""
+    a = r.attrs
+    if 'level_set_area' not in a:
+        return '-'
+    return f"{6 * np.sqrt(np.pi) * a['level_set_volume'] / a['level_set_area'] ** 1.5:.4f}"
 
 
 def tube(r, theta):
@@ -117,14 +125,16 @@ def write(args, record, rows):
               "surface phi_h = 0 as it is (the curve of revolution for the axisymmetric torus, "
               "the 3D surface with harmonics), a torus not being put on the constraints: at C0 "
               "= 0 its energy depends on its reduced volume alone, near the Clifford torus's "
-              "conformal family only to second order. nu_X: the multiplier of "
+              "conformal family only to second order (level set v: the reduced volume of "
+              "phi_h = 0, which the phase field's diffuse volume and area leave below the "
+              "scene's). nu_X: the multiplier of "
               "the moment across the axis; it vanishes where the translation is a symmetry "
               "of the discrete problem, so it measures what the truncation at J costs. Tube: "
               "the nodes of the mirror plane z = zc where the nodal phi > 0 at theta = 0 and "
               "pi, the section of the tube on either side of the axis; the start's is "
               "lopsided, its hole's centre on the axis.", '']
     lines += report.table(['v', 'eps', 'J', 'from', 'E', 'E / pi^2 - 1', 'level-set E',
-                           'vs pi^2', 'topology', 'genus', 'tube at theta = 0 (r)',
+                           'vs pi^2', 'level set v', 'topology', 'genus', 'tube at theta = 0 (r)',
                            'at theta = pi', 'nu_X', 'Newton its (1/2)', 'wall s'], rows)
     report.write(args.out, lines)
 
