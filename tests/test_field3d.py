@@ -46,9 +46,14 @@ def test_gradient_and_hessian_are_the_derivatives_of_the_values():
         assert np.abs(H_fd - hess[:, :, k]).max() <= 1e-5 * np.abs(hess).max()
 
 
-def _maxent(box, phi_of, plane=None, n=3000):
+def _maxent_nodes(box, plane=None, n=3000):
+    """Uniform nodes of `box` and their locality at gamma 0.8."""
     xy = nodes.uniform(box, n, half=plane is not None)
-    beta = locality(xy, 0.8, 3, plane)
+    return xy, locality(xy, 0.8, 3, plane)
+
+
+def _maxent(box, phi_of, plane=None, n=3000):
+    xy, beta = _maxent_nodes(box, plane, n)
     phi = phi_of(xy)
     return field3d.Harmonic3D.of(xy, phi[:, None], [0], [False], box, EPS, beta, 1e-6, plane)
 
@@ -96,15 +101,13 @@ def test_the_checks_take_a_torus_with_its_own_energy():
     volume, here the scene's differs from the torus's): its level-set energy is
     its surface's, at the finer marching step, as the axisymmetric checks take
     a torus's loop (`levelset.loop_energy`)."""
-    xy = nodes.uniform(TORUS_BOX, 3000, half=True)
-    beta = locality(xy, 0.8, 3, TORUS_ZC)
+    xy, beta = _maxent_nodes(TORUS_BOX, TORUS_ZC)
     attrs = dict(harmonics=np.array([0]), harmonics_highest=0, dihedral=1, eps=EPS,
                  box=np.array(TORUS_BOX), symmetric=1, k=1.0, c0=0.0, radius=0.4,
                  reduced_volume=0.8, gamma=0.8, cutoff=1e-6)
     checks = surface_checks(MPI.COMM_SELF, xy, _torus(xy)[:, None], attrs, beta)
     assert checks['topology'] == '1 torus' and checks['genus'] == 1
-    f = field3d.Harmonic3D.of(xy, _torus(xy)[:, None], [0], [False], TORUS_BOX, EPS, beta,
-                              1e-6, TORUS_ZC)
+    f = _maxent(TORUS_BOX, _torus, plane=TORUS_ZC)
     fine = field3d.measure(f, TORUS_BOX, EPS, 1.0, 0.0, field3d.MARCH * EPS / 2)
     coarse = field3d.measure(f, TORUS_BOX, EPS, 1.0, 0.0)
     assert checks['level_set_energy'] == fine.energy

@@ -47,6 +47,7 @@ def main(argv=None):
     mpi = PETSc.COMM_WORLD.tompi4py()
     record = report.provenance()
     rows = []
+    highest = [int(J) for J in args.highest.split(',')]
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=BOX, symmetric=True)
         grid = pf.Grid.uniform(scene, nodes=NODES)
@@ -55,7 +56,6 @@ def main(argv=None):
             t = time.perf_counter()
             axi = pf.solve(scene, grid, eps, checks=True)
             rows.append(row(v, eps, 0, 'circular tube', axi, time.perf_counter() - t))
-            highest = [int(J) for J in args.highest.split(',')]
             for J in highest if n == 0 else highest[-1:]:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
                     rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 11)
