@@ -45,6 +45,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
     mpi = PETSc.COMM_WORLD.tompi4py()
+    args.ranks = mpi.Get_size()
     record = report.provenance()
     rows = []
     highest = [int(J) for J in args.highest.split(',')]
@@ -119,7 +120,7 @@ def write(args, record, rows):
              "alone from the last converged state" if args.continued
              else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {BOX[0]} x {BOX[1]} as a half box, {NODES} nodes of the "
-              "full box (the paper's spacing), 2 ranks; harmonics m = 0, 1, ..., J, "
+              f"full box (the paper's spacing), {args.ranks} rank(s); harmonics m = 0, 1, ..., J, "
               f"{start}, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
               "energy of genus one at these v (sharp, exact). Level-set E: the energy of the "
               "surface phi_h = 0 as it is (the curve of revolution for the axisymmetric torus, "
