@@ -27,6 +27,14 @@ LINEAR_EVENTS = ('PCSetUp', 'KSPSolve')
 # returned to the axisymmetric state (rounding leaves 1e-12 at one that
 # stays there, `tests/parallel/test_harmonic_solve.py`).
 SADDLE_AMPLITUDE = 1e-8
+# The curved push samples L along its path at these t (units of -pf_perturb) and fits
+# L(t) - L(0) = alpha t^2 + beta t^4 + gamma t^6: gamma takes up the path's own error (its
+# terms of order t^3 and up), so that alpha and beta are the reduced energy's and the
+# branch's amplitude is t* = sqrt(-alpha / (2 beta)) (Lyapunov-Schmidt, to leading order).
+CURVE_SAMPLES = (0.5, 1.0, 1.5)
+# No push moves |psi| beyond this, half the phase field's range: there it moves the
+# interface by more than its width, where the path's expansion means nothing.
+PUSH_MAX = 0.5
 
 
 def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False):
@@ -51,9 +59,11 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     then lifts it (`critical_start`): each harmonic m whose mode Hessian has a
     negative eigenvalue there starts along that critical mode with amplitude
     `pf_perturb`, the others at 0, so the solve leaves the axisymmetric
-    family's saddle downhill and does not wander where it is stable. The
-    result's times are the sum, its `energy_history` the harmonic solve's,
-    `start_unstable_m` the harmonics pushed.
+    family's saddle downhill and does not wander where it is stable; one
+    harmonic pushed, the push follows the branch's centre manifold to its
+    leading-order amplitude (`pf_push` curved). The result's times are the
+    sum, its `energy_history` the harmonic solve's, `start_unstable_m` the
+    harmonics pushed, `start_push` the push's largest |psi|.
 
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
@@ -73,7 +83,8 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
                      'time_setup'):
             result.attrs[name] += axisymmetric.attrs[name]
         result.attrs['wall_time'] += t
-        result.attrs.update(start_unstable_m=unstable, time_lift=t)
+        result.attrs.update(start_unstable_m=unstable, start_push=lift.attrs['start_push'],
+                            time_lift=t)
         back = returned(result, unstable)
         if back:
             result.attrs['saddle'] = 1
@@ -102,8 +113,10 @@ def critical_start(axisymmetric, scene, grid, options=None):
     |psi_m| at a node is the scene's `pf_perturb`, and 0 where mode m is
     stable (the sign of an eigenvector is a rotation by pi / m). Collective.
 
+    One harmonic pushed, the push is curved by default (-pf_push, `_curved`).
     Returns the start (a `Result` on `grid`, converged as the axisymmetric
-    one) and the array of the m pushed.
+    one, the push's largest |psi| in `start_push`) and the array of the m
+    pushed.
     """
     h = scene.harmonic_set
     phi = np.zeros((len(axisymmetric.phi), len(h)))
@@ -128,7 +141,61 @@ def critical_start(axisymmetric, scene, grid, options=None):
                 PETSc.Sys.Print(f"start: the axisymmetric state is unstable to m = {m} "
                                 f"(lowest eigenvalue {lowest:.4g}): pushed along it by "
                                 f"{perturb:g}", comm=grid.comm)
-    return dataclasses.replace(axisymmetric, phi=phi), np.array(unstable, dtype=int)
+        curved = len(unstable) == 1 and problem.settings.push == 'curved'
+    lift = dataclasses.replace(axisymmetric, phi=phi,
+                               attrs={**axisymmetric.attrs, 'start_push': perturb})
+    return _curved(lift, scene, grid, options) if curved else lift, np.array(unstable, dtype=int)
+
+
+def _curved(lift, scene, grid, options):
+    """The start `lift` (the solved axisymmetric state pushed along one critical
+    mode, by -pf_perturb) moved along the centre manifold to second order
+    (`parallel.problem.Problem.slaved`): x0 + t d + t^2 w, nu + t^2 dnu, to
+    the t where the reduced energy alpha t^2 + beta t^4 (CURVE_SAMPLES) is
+    least, t* = sqrt(-alpha / (2 beta)) (at most PUSH_MAX). Where beta <= 0 (the
+    branch turns back: a subcritical bifurcation) `lift` as it is. Records the
+    push's largest |psi| in `start_push`. Collective."""
+    with Problem(grid, scene, lift.eps, next_prefix(), options) as problem:
+        perturb, summary = problem.settings.perturb, problem.settings.summary
+        axisymmetric = np.zeros_like(lift.phi)
+        axisymmetric[:, 0] = lift.phi[:, 0]
+        x0, d = problem.vec(axisymmetric), problem.vec(lift.phi - axisymmetric)
+        x, nu0 = x0.duplicate(), np.zeros(problem.ncon)
+        nu0[:len(lift.nu)] = lift.nu
+        x0.copy(x)
+        x.axpy(1.0, d)
+        problem.assembly.hold(x)  # the rigid motions where the straight push puts them
+        problem.nu = nu0
+        w, dnu = problem.slaved(x0, d)
+
+        def along(t):
+            x0.copy(x)
+            x.axpy(t, d)
+            x.axpy(t * t, w)
+            return x, nu0 + t * t * dnu
+
+        L0 = problem.lagrangian(*along(0.0))
+        t = np.array(CURVE_SAMPLES)
+        alpha, beta, _ = np.linalg.solve(np.column_stack([t ** 2, t ** 4, t ** 6]),
+                                         [problem.lagrangian(*along(s)) - L0 for s in t])
+        if not alpha < 0 < beta:
+            if summary:
+                petsc.start().Sys.Print(
+                    f"start: the reduced energy {alpha:.4g} t^2 + {beta:.4g} t^4 has no "
+                    f"least value: pushed straight by {perturb:g}", comm=grid.comm)
+            return lift
+        t = min(math.sqrt(-alpha / (2.0 * beta)), PUSH_MAX / perturb)
+        x, nu = along(t)
+        phi = problem.nodal(x, -1.0)
+        for v in (x0, d, x, w):
+            v.destroy()
+    if summary:
+        petsc.start().Sys.Print(
+            f"start: curved push to {t * perturb:.4g} (the reduced energy {alpha:.4g} t^2 + "
+            f"{beta:.4g} t^4 least at t = {t:.3g}, t in units of {perturb:g})", comm=grid.comm)
+    names = multiplier_names(lift.attrs)
+    return dataclasses.replace(lift, phi=phi, attrs={**lift.attrs, **dict(zip(names, nu)),
+                                                     'start_push': t * perturb})
 
 
 def returned(result, unstable):

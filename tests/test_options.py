@@ -206,7 +206,8 @@ def test_an_auto_box_without_a_start_is_refused():
     ({'harmonics': '1', 'dihedral': '2', 'tol': '1e-3'}, r'-pf_tol with -pf_harmonics'),
     ({'harmonics': '-1'}, r'-pf_harmonics must be >= 0'),
     ({'harmonics': '1', 'dihedral': '2', 'hessian': 'full'}, r'-pf_hessian: unknown Hessian'),
-], ids=['dihedral 1', 'sines', 'tol', 'negative', 'hessian'])
+    ({'harmonics': '1', 'dihedral': '2', 'push': 'bent'}, r'-pf_push: unknown push'),
+], ids=['dihedral 1', 'sines', 'tol', 'negative', 'hessian', 'push'])
 def test_what_harmonics_cannot_yet_do_is_refused(values, message):
     with pytest.raises(UsageError, match=message):
         read(values)

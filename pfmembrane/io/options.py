@@ -32,6 +32,7 @@ SHAPE_NAMES = {'spheroid': 'spheroid', 'torus': 'ring torus', 'spheres': 'pair o
                'moebius': 'Moebius image of the Clifford torus'}
 STAGE1 = ('newton', 'tao', 'none')
 HESSIANS = ('block', 'coupled')
+PUSHES = ('curved', 'straight')
 QUADRATURE = (1, 2, 4, 5)
 MIN_NODES = 200
 
@@ -54,6 +55,7 @@ class Settings:
     force: bool = False
     start: str = 'auto'
     perturb: float = 0.02
+    push: str = 'curved'
     hessian: str = 'block'
     refresh: float = 2.0
 
@@ -150,6 +152,10 @@ HELP = {
     'perturb': 'with harmonics: largest |psi_m| of the push a fresh start gets along the '
                'critical mode of each harmonic m unstable at the solved axisymmetric state '
                '(an axisymmetric restart: a deterministic bump in every m > 0)',
+    'push': 'with harmonics, a fresh start pushed along one critical mode: curved (along '
+            'the centre manifold to second order, to the amplitude where its reduced energy '
+            'alpha t^2 + beta t^4 is least; straight where beta <= 0) | straight (by '
+            '-pf_perturb)',
     'hessian': 'with harmonics, the Hessian the solver factors: block (the mode Hessians of the '
                'theta-averaged state: the preconditioner of GMRES on the exact action) | coupled '
                '(the exact one, every pair of harmonics: nh^2 times the entries, direct solves '
@@ -321,6 +327,8 @@ def validate_settings(s, prefix=''):
     if s.hessian not in HESSIANS:
         raise UsageError(f"-{prefix}pf_hessian: unknown Hessian {s.hessian!r} "
                          f"(choose {', '.join(HESSIANS)})")
+    if s.push not in PUSHES:
+        raise UsageError(f"-{prefix}pf_push: unknown push {s.push!r} (choose {', '.join(PUSHES)})")
     if s.stage1 not in STAGE1:
         raise UsageError(f"-{prefix}pf_stage1: unknown solver {s.stage1!r} "
                          f"(choose {', '.join(STAGE1)})")

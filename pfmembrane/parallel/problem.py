@@ -191,6 +191,38 @@ class Problem:
         """The negative pivots of the factorization in `ksp` (None without inertia)."""
         return self.solver.negative_pivots(ksp)
 
+    # -- leaving an equilibrium -------------------------------------------------
+    def lagrangian(self, x, nu):
+        """L = E - nu . (c - c0) at x. Collective."""
+        P = self.assembly
+        vals = P.values(x)
+        return vals[0] - np.dot(nu, P.constraints(vals) - P.targets)
+
+    def slaved(self, x0, d):
+        """The second-order term (w, dnu) of the path x0 + t d + t^2 w, nu + t^2
+        dnu out of the equilibrium (x0, nu) (the problem's multipliers) along
+        the critical direction d: the rest of the unknowns at their equilibrium
+        given t, to second order (the centre manifold's Taylor term). It solves
+        J [w; dnu] = -F''[d, d] / 2, J the bordered Jacobian at x0 and F'' by
+        the central second difference of F with step d. J w is solvable where
+        F''[d, d] has no part along d, which holds for a critical mode of one
+        harmonic m > 0: F''[d, d] lies in the harmonics 0 and 2m. Collective."""
+        F0, up, down = self.bordered_vec(), self.bordered_vec(), self.bordered_vec()
+        x = x0.copy()
+        self.residual(x0, F0)
+        x.axpy(1.0, d)
+        self.residual(x, up)
+        x.axpy(-2.0, d)
+        self.residual(x, down)
+        up.axpy(1.0, down)
+        up.axpy(-2.0, F0)
+        up.scale(-0.5)
+        self.jacobian(x0).solve(up, F0)
+        w, dnu = self.split(F0)
+        for v in (x, up, down, F0):
+            v.destroy()
+        return w, dnu
+
     # -- stability ---------------------------------------------------------------
     def index(self, phi, nu):
         """The index of the state `phi` (nodal, with harmonics) with multipliers
