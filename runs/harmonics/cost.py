@@ -3,18 +3,20 @@
 threefold.py), solved axisymmetric and with the cosine harmonics m = 0, 3, ..., 3J for each
 J of --harmonics (-pf_dihedral 3; J = 4: five harmonics), each from its fresh start (the
 axisymmetric solve, then the push along the m = 3 critical mode: the largest J with each
--pf_perturb of --perturb, the default 0.02 and one near the final amplitude, the others
-with 0.02), in turn, REPEAT times, in
+-pf_push of --push, curved (the default: along the branch to its leading-order amplitude)
+and straight (by -pf_perturb 0.02), the others with the default), in turn, REPEAT times, in
 one sitting: wall time (the solve without its checks), peak memory, Newton and Krylov
-iterations, factorizations, the energy; and the largest set from the last push again with
-the block preconditioner assembled and factored at every Newton step (-pf_refresh 0), then
-also with GMRES to 1e-10 instead of the default 1e-6. A scene whose harmonic solve ends at a non-axisymmetric equilibrium
-near its start, so that its wall measures the solver: the paper's discocyte with m up to 8
-descends far from its m = 2 push (this page's version of 22707a7 in the history: not
-converged in 1041 s, E 9.5908 against the axisymmetric 9.6003).
+iterations, factorizations, the energy; and the largest set with the default push again
+with the block preconditioner assembled and factored at every Newton step (-pf_refresh 0),
+then also with GMRES to 1e-10 instead of the default 1e-6. A scene whose harmonic solve
+ends at a non-axisymmetric equilibrium near its start, so that its wall measures the
+solver: the paper's discocyte with m up to 8 descends far from its m = 2 push (this page's
+version of 22707a7 in the history: not converged in 1041 s, E 9.5908 against the
+axisymmetric 9.6003).
 Under mpiexec; written to runs/harmonics/cost.md.
 
-    mpiexec -n 2 python runs/harmonics/cost.py [--repeat 2] [--harmonics 2,4] [--perturb 0.02,0.2]
+    mpiexec -n 2 python runs/harmonics/cost.py [--repeat 2] [--harmonics 2,4]
+        [--push curved,straight]
 """
 import argparse
 import dataclasses
@@ -37,8 +39,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--repeat', type=int, default=2)
     ap.add_argument('--harmonics', default='2,4')
-    ap.add_argument('--perturb', default='0.02,0.2',
-                    help='-pf_perturb of the largest set: the push along the critical mode')
+    ap.add_argument('--push', default='curved,straight',
+                    help='-pf_push of the largest set: how the start leaves the axisymmetric state')
     ap.add_argument('--out', default=os.path.join(HERE, 'cost.md'))
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
@@ -48,16 +50,15 @@ def main(argv=None):
     scenes = {'axisymmetric': (scene, {})}
     highest = [int(J) for J in args.harmonics.split(',')]
     for J in highest:
-        pushes = args.perturb.split(',') if J == max(highest) else ['0.02']
-        for p in pushes:
-            scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines), perturb {p}"] = (
-                dataclasses.replace(scene, harmonics=J, dihedral=3), {'pf_perturb': p})
-    # the trade of the solver's defaults, on the largest set from the last push: the
-    # preconditioner new at every Newton step, and with it GMRES to 1e-10
-    J, p = max(highest), pushes[-1]
+        for push in args.push.split(',') if J == max(highest) else ['curved']:
+            scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines), {push} push"] = (
+                dataclasses.replace(scene, harmonics=J, dihedral=3), {'pf_push': push})
+    # the trade of the solver's defaults, on the largest set: the preconditioner new at
+    # every Newton step, and with it GMRES to 1e-10
+    J = max(highest)
     for label, options in VARIANTS:
-        scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines), perturb {p}, {label}"] = (
-            dataclasses.replace(scene, harmonics=J, dihedral=3), {'pf_perturb': p, **options})
+        scenes[f"m = 0, 3, ..., {3 * J} ({J + 1} cosines), curved push, {label}"] = (
+            dataclasses.replace(scene, harmonics=J, dihedral=3), options)
     times = {name: [] for name in scenes}
     last, peak = {}, {}
     for _ in range(args.repeat):
@@ -84,13 +85,16 @@ def write(args, record, times, last, peak):
                      f"{a['time_stage1']:.1f} / {a['time_stage2']:.1f}",
                      f"{a['stage1_iterations']} / {newton}",
                      f"{krylov / max(newton, 1):.1f}" if name != 'axisymmetric' else '1 (direct)',
-                     f"{a['factorizations']}", f"{peak[name]:.0f}"])
+                     f"{a['factorizations']}", f"{peak[name]:.0f}",
+                     f"{a['start_push']:.3f}" if 'start_push' in a else ''])
     lines = report.header('Cost of the harmonics on the three-fold scene', record)
     lines += ["The oblate at reduced c0 2.8 (C0 3.5, R 0.4), v 0.95, eps 0.04, half box, 6,124 "
               "uniform nodes of the full box (the paper's spacing), 2 ranks, each solve from "
               "its fresh start (with harmonics: the axisymmetric solve, then the push along the "
-              "m = 3 critical mode, its largest |psi_3| -pf_perturb (the three-fold state's "
-              "own is 0.163 with m up to 6: branch.md); both in its wall); the runs alternate, "
+              "m = 3 critical mode, curved (-pf_push curved, the default: along the branch's "
+              "centre manifold to second order, to its leading-order amplitude) or straight "
+              "(by -pf_perturb 0.02); both in its wall; push: the start's largest |psi_3|); "
+              "the runs alternate, "
               f"{args.repeat} of each. Wall: `pf.solve` without the phase-field checks. "
               "Krylov per Newton step: stage 2's GMRES iterations over its Newton steps (the "
               "axisymmetric stage 2 factors its exact Jacobian). Factorizations: both stages' "
@@ -99,7 +103,8 @@ def write(args, record, times, last, peak):
               "a peak only grows).", '']
     lines += report.table(['solve', 'converged', 'E', 'wall s (each run)', 'wall / axisymmetric',
                            'stage 1 / 2 s', 'Newton its (stage 1 / 2)',
-                           'Krylov its per Newton step', 'factorizations', 'peak MB'], rows)
+                           'Krylov its per Newton step', 'factorizations', 'peak MB', 'push'],
+                          rows)
     report.write(args.out, lines)
     print('\n'.join(lines))
 
