@@ -11,7 +11,7 @@ grid and eps (from the circular tube; above v 0.84 from the torus solved at 0.84
 mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
-        [--eps 0.04,0.03] [--hessian coupled] [--no-continued] [--until HH:MM]
+        [--eps 0.04,0.03] [--box 0.8,1.0] [--hessian coupled] [--no-continued] [--until HH:MM]
         [--out runs/harmonics/torus.md]
 """
 import argparse
@@ -27,12 +27,15 @@ from pfmembrane import report
 from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-BOX = (0.8, 1.0)
-NODES = round(6124 * BOX[0] * BOX[1] / (1.5 * 2.0))  # the paper's spacing
 PI2 = np.pi ** 2
 # The circular tube starts the axisymmetric torus up to its largest reduced volume, the
 # horn torus's 3 / (2 sqrt pi) = 0.846.
 RING_MAX = 0.84
+
+
+def nodes(box):
+    """The uniform grid's node count in `box` at the paper's spacing (6,124 in 1.5 x 2)."""
+    return round(6124 * box[0] * box[1] / (1.5 * 2.0))
 
 
 def main(argv=None):
@@ -41,6 +44,8 @@ def main(argv=None):
     ap.add_argument('--highest', default='2,4,6,8')
     ap.add_argument('--eps', default='0.04')
     ap.add_argument('--hessian', default='coupled', help='-pf_hessian of the harmonic solves')
+    ap.add_argument('--box', default='0.8,1.0', help='Rb,Zb (the Moebius image at v 0.85 '
+                    'reaches r 0.68: 0.85,1.0)')
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
     ap.add_argument('--no-continued', dest='continued', action='store_false',
                     help='every J from the Moebius image')
@@ -49,12 +54,13 @@ def main(argv=None):
     PETSc = pf.api.petsc(sys.argv[:1])
     mpi = PETSc.COMM_WORLD.tompi4py()
     args.ranks = mpi.Get_size()
+    args.box = tuple(map(float, args.box.split(',')))
     record = report.provenance()
     rows = []
     highest = [int(J) for J in args.highest.split(',')]
     for v in map(float, args.v.split(',')):
-        scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=BOX, symmetric=True)
-        grid = pf.Grid.uniform(scene, nodes=NODES)
+        scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
+        grid = pf.Grid.uniform(scene, nodes=nodes(args.box))
         previous = None
         for n, eps in enumerate(map(float, args.eps.split(','))):
             t = time.perf_counter()
@@ -132,8 +138,9 @@ def write(args, record, rows):
              "converged J (its harmonics, the new ones at 0), at each further eps the largest J "
              "alone from the last converged state" if args.continued
              else "every J from -pf_start moebius")
-    lines += [f"C0 = 0, R 0.4, box {BOX[0]} x {BOX[1]} as a half box, {NODES} nodes of the "
-              f"full box (the paper's spacing), {args.ranks} rank(s); harmonics m = 0, 1, ..., J, "
+    lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
+              f"{nodes(args.box)} nodes of the full box (the paper's spacing), {args.ranks} "
+              "rank(s); harmonics m = 0, 1, ..., J, "
               f"{start}, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
               "energy of genus one at these v (sharp, exact). Level-set E: the energy of the "
               "surface phi_h = 0 as it is (the curve of revolution for the axisymmetric torus, "
