@@ -165,6 +165,20 @@ def test_a_non_axisymmetric_branch_is_followed_in_v(pushed):
     assert all(np.abs(p.phi[:, 1]).max() > 1e-2 for p in points)
 
 
+def test_a_non_axisymmetric_branch_is_followed_in_c0(pushed):
+    # the m = 2 state followed in C0: each point is the equilibrium that Newton (stage 2
+    # alone) reaches at its C0 from the point before, and the m = 2 part stays
+    chain = [pushed] + list(pf.continuation(pushed, 'c0', 0.05, 2))
+    assert len(chain) == 3
+    for a, b in zip(chain, chain[1:]):
+        assert b.scene.c0 > a.scene.c0 and b.attrs['index_0'] == 0
+        newton = pf.solve(b.scene, pushed.grid, EPS, start=a, options={'pf_stage1': 'none'})
+        assert newton.converged
+        assert newton.energy == pytest.approx(b.energy, rel=1e-9)
+        assert np.abs(newton.phi - b.phi).max() < 1e-5
+        assert np.abs(b.phi[:, 1]).max() > 1e-2
+
+
 def test_with_sines_a_turned_state_is_the_same_equilibrium(pushed):
     # Without a mirror plane through the axis (sines), the m = 2 state turned by alpha
     # is an equilibrium of the same energy; the phase condition holds the turn where
