@@ -80,18 +80,17 @@ class Harmonic3D:
 
 
 class _Evaluation:
-    """(phi, grad, hess) at points, each computed when first asked for
-    (the level set's sampling needs phi alone)."""
+    """(phi, grad, hess) at points, each computed when first asked for, to the
+    order asked (the level set's sampling needs phi alone, its projection the
+    gradient, its curvature the Hessian)."""
 
     def __init__(self, field, points):
         self.f, self.points = field, points
-        self._parts = None
+        self._parts = ()
 
     def __getitem__(self, i):
-        if i == 0 and self._parts is None:
-            return self._phi()
-        if self._parts is None:
-            self._parts = self._all()
+        if i >= len(self._parts):
+            self._parts = self._phi() if i == 0 else self._derivatives(i)
         return self._parts[i]
 
     def _phi(self):
@@ -101,12 +100,13 @@ class _Evaluation:
         for s, m, sine in zip(f.splines, f.m, f.sine):
             T = np.sin(m * theta) if sine else np.cos(m * theta)
             out += r ** m * s.ev(r, z) * T
-        return out
+        return (out,)
 
-    def _all(self):
-        """phi, its Cartesian gradient and Hessian from the cylindrical
-        derivatives f_r, f_theta, f_z, f_rr, f_rtheta, f_thetatheta, f_rz,
-        f_thetaz, f_zz of sum_j g_j(r, z) T_j(theta), g_j = r^m S_j."""
+    def _derivatives(self, order):
+        """phi, its Cartesian gradient and, to `order` 2, its Hessian, from the
+        cylindrical derivatives f_r, f_theta, f_z (and f_rr, f_rtheta,
+        f_thetatheta, f_rz, f_thetaz, f_zz) of sum_j g_j(r, z) T_j(theta),
+        g_j = r^m S_j."""
         f = self.f
         r, theta, z, flip = f.cylindrical(self.points)
         r = np.maximum(r, R_AXIS)
@@ -114,21 +114,25 @@ class _Evaluation:
         F = {k: np.zeros(n) for k in ('', 'r', 't', 'z', 'rr', 'rt', 'tt', 'rz', 'tz', 'zz')}
         for s, m, sine in zip(f.splines, f.m, f.sine):
             S, Sr, Sz = s.ev(r, z), s.ev(r, z, dx=1), s.ev(r, z, dy=1)
-            Srr, Srz, Szz = s.ev(r, z, dx=2), s.ev(r, z, dx=1, dy=1), s.ev(r, z, dy=2)
             rm = r ** m
             rm1 = m * r ** (m - 1.0) if m else np.zeros(n)
-            rm2 = m * (m - 1.0) * r ** (m - 2.0) if m > 1 else np.zeros(n)
             g, gr, gz = rm * S, rm1 * S + rm * Sr, rm * Sz
-            grr, grz, gzz = rm2 * S + 2 * rm1 * Sr + rm * Srr, rm1 * Sz + rm * Srz, rm * Szz
             c, sn = np.cos(m * theta), np.sin(m * theta)
             T, dT, d2T = (sn, m * c, -m * m * sn) if sine else (c, -m * sn, -m * m * c)
-            for key, a, b in (('', g, T), ('r', gr, T), ('t', g, dT), ('z', gz, T),
-                              ('rr', grr, T), ('rt', gr, dT), ('tt', g, d2T),
-                              ('rz', grz, T), ('tz', gz, dT), ('zz', gzz, T)):
+            terms = [('', g, T), ('r', gr, T), ('t', g, dT), ('z', gz, T)]
+            if order > 1:
+                Srr, Srz, Szz = s.ev(r, z, dx=2), s.ev(r, z, dx=1, dy=1), s.ev(r, z, dy=2)
+                rm2 = m * (m - 1.0) * r ** (m - 2.0) if m > 1 else np.zeros(n)
+                grr, grz, gzz = rm2 * S + 2 * rm1 * Sr + rm * Srr, rm1 * Sz + rm * Srz, rm * Szz
+                terms += [('rr', grr, T), ('rt', gr, dT), ('tt', g, d2T), ('rz', grz, T),
+                          ('tz', gz, dT), ('zz', gzz, T)]
+            for key, a, b in terms:
                 F[key] += a * b
         c, s = np.cos(theta), np.sin(theta)
         fr, ft, fz = F['r'], F['t'] / r, F['z'] * flip
         grad = np.column_stack([c * fr - s * ft, s * fr + c * ft, fz])
+        if order == 1:
+            return F[''], grad
         # d/dx = c d/dr - (s / r) d/dtheta, d/dy = s d/dr + (c / r) d/dtheta
         rr, rt, tt, fr_r, ft_r2 = F['rr'], F['rt'] / r, F['tt'] / r ** 2, F['r'] / r, \
             F['t'] / r ** 2

@@ -59,6 +59,8 @@ TMIN = 1e-6            # edge parameters of the vertices lie in [TMIN, 1 - TMIN]
 EDGE_ITERATIONS = 60   # regula falsi steps along a grid edge, at most
 EDGE_TOL = 1e-12       # ... until the bracket is this fraction of the edge
 NEWTON_STEPS = 3       # projection along grad phi after the edge root
+PROJECT_TOL = 1e-13    # ... of the vertices where |phi| is above this: below it phi's own
+                       # rounding, not the vertex's distance, sets it, and halved steps fail
 
 
 @dataclass
@@ -212,6 +214,7 @@ def _call(field, points, what=(0, 1, 2)):
     parts = [[] for _ in what]
     for start in range(0, len(points), CHUNK):
         out = field(points[start:start + CHUNK])
+        out[max(what)]  # the highest part first: a lazy field computes the lower with it
         for store, i in zip(parts, what):
             store.append(np.asarray(out[i], dtype=float))
     return [np.concatenate(p) if p else np.zeros((0,)) for p in parts]
@@ -332,7 +335,7 @@ def _project(field, x, steps):
         g2 = np.maximum(np.sum(grad ** 2, axis=1), np.finfo(float).tiny)
         move = (phi / g2)[:, None] * grad
         scale = np.ones(len(x))
-        todo = np.flatnonzero(phi != 0)
+        todo = np.flatnonzero(np.abs(phi) > PROJECT_TOL)
         for _ in range(10):
             if not todo.size:
                 break
