@@ -175,20 +175,23 @@ def _curved(lift, scene, grid, options):
             return x, nu0 + t * t * dnu
 
         L0 = problem.lagrangian(*along(0.0))
-        t = np.array(CURVE_SAMPLES)
-        alpha, beta, _ = np.linalg.solve(np.column_stack([t ** 2, t ** 4, t ** 6]),
-                                         [problem.lagrangian(*along(s)) - L0 for s in t])
-        if not alpha < 0 < beta:
-            if summary:
-                petsc.start().Sys.Print(
-                    f"start: the reduced energy {alpha:.4g} t^2 + {beta:.4g} t^4 has no "
-                    f"least value: pushed straight by {perturb:g}", comm=grid.comm)
-            return lift
-        t = min(math.sqrt(-alpha / (2.0 * beta)), PUSH_MAX / perturb)
-        x, nu = along(t)
-        phi = problem.nodal(x, -1.0)
+        samples = np.array(CURVE_SAMPLES)
+        alpha, beta, _ = np.linalg.solve(
+            np.column_stack([samples ** 2, samples ** 4, samples ** 6]),
+            [problem.lagrangian(*along(s)) - L0 for s in samples])
+        t = min(math.sqrt(-alpha / (2.0 * beta)), PUSH_MAX / perturb) \
+            if alpha < 0 < beta else None
+        if t is not None:
+            x, nu = along(t)
+            phi = problem.nodal(x, -1.0)
         for v in (x0, d, x, w):
             v.destroy()
+    if t is None:
+        if summary:
+            petsc.start().Sys.Print(
+                f"start: the reduced energy {alpha:.4g} t^2 + {beta:.4g} t^4 has no least "
+                f"value: pushed straight by {perturb:g}", comm=grid.comm)
+        return lift
     if summary:
         petsc.start().Sys.Print(
             f"start: curved push to {t * perturb:.4g} (the reduced energy {alpha:.4g} t^2 + "
