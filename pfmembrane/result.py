@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pfmembrane.io import checkpoint
+from pfmembrane.kernels.initial import reduced_volume
 from pfmembrane.scene import Scene
 
 
@@ -67,6 +68,17 @@ class Result:
         """The Canham-Helfrich energy of phi_h = 0, the sharp-limit estimate
         (NaN where undefined or not computed: `solve(..., checks=True)`)."""
         return float(self.attrs.get('level_set_energy', math.nan))
+
+    @property
+    def level_set_reduced_volume(self):
+        """The reduced volume 6 sqrt(pi) V / A^1.5 of phi_h = 0, from the
+        area and volume the checks measure of a torus and of any surface with
+        harmonics (NaN where they did not: no checks, or one sphere's
+        axisymmetric checks, which compare it with the sharp shape instead)."""
+        a = self.attrs
+        if 'level_set_area' not in a:
+            return math.nan
+        return float(reduced_volume(a['level_set_area'], a['level_set_volume']))
 
     @property
     def topology(self):

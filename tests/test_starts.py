@@ -183,6 +183,9 @@ def test_the_torus_start_stays_a_torus_and_reports_its_own_energy():
     area, volume = res.attrs['level_set_area'], res.attrs['level_set_volume']
     assert area == pytest.approx(4 * np.pi * 0.4 ** 2, rel=1e-2)
     assert 0.9 < volume / (scene.reduced_volume * 4 / 3 * np.pi * 0.4 ** 3) < 1.0
+    assert res.level_set_reduced_volume == pytest.approx(
+        6 * np.sqrt(np.pi) * volume / area ** 1.5, rel=1e-12)
+    assert 0.9 < res.level_set_reduced_volume / scene.reduced_volume < 1.0
     assert 'sharp_energy' not in res.attrs
 
 

@@ -106,18 +106,11 @@ def row(v, eps, J, began, r, seconds):
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
     return [v, eps, J or 'axisymmetric', began, f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
-            f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", reduced(r), r.attrs.get('topology', '-'),
+            f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", f"{r.level_set_reduced_volume:.4f}",
+            r.attrs.get('topology', '-'),
             genus if genus == '' else int(genus), tube(r, 0.0), tube(r, np.pi),
             f"{r.attrs['nu_moment_x']:.4g}" if J else '',
             f"{r.attrs['stage1_iterations']}/{r.attrs['stage2_iterations']}", f"{seconds:.0f}"]
-
-
-def reduced(r):
-    """The reduced volume 6 sqrt(pi) V / A^1.5 of the level set phi_h = 0."""
-    a = r.attrs
-    if 'level_set_area' not in a:
-        return '-'
-    return f"{6 * np.sqrt(np.pi) * a['level_set_volume'] / a['level_set_area'] ** 1.5:.4f}"
 
 
 def tube(r, theta):
