@@ -4,9 +4,9 @@ not axisymmetric, so only harmonics reach them. The harmonics are m = 0, 1, ...,
 (-pf_dihedral 1, cosines: the mirror plane through the hole's centre; the half box: the
 mirror z = zc), the moment X holding the translation across the axis. At the first eps the
 first J starts from the image with the scene's reduced volume (-pf_start moebius: its hole
-on the axis), each next J from the last converged one, its harmonics kept and the new ones
-at 0 (--no-continued: every J from the image); at each further eps the largest J alone, from
-the last converged state at the eps before. Against them, the axisymmetric torus on the same
+on the axis), each next J from the last converged torus, its harmonics kept and the new
+ones at 0 (--no-continued: every J from the image); at each further eps the largest J alone,
+from the last converged torus at the eps before (from the image where none is). Against them, the axisymmetric torus on the same
 grid and eps (from the circular tube; above v 0.84 from the torus solved at 0.84). Under
 mpiexec; the table is rewritten after every solve.
 
@@ -79,7 +79,8 @@ def main(argv=None):
                 t = time.perf_counter()
                 r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
                 rows.append(row(v, eps, J, began, r, time.perf_counter() - t))
-                if args.continued and r.converged:
+                # a state whose hole closed continues nothing: the next starts anew
+                if args.continued and r.converged and r.attrs.get('genus') == 1:
                     previous = r
                 if mpi.Get_rank() == 0:
                     write(args, record, rows)
