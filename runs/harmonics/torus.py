@@ -6,9 +6,9 @@ mirror z = zc), the moment X holding the translation across the axis. At the fir
 first J starts from the image with the scene's reduced volume (-pf_start moebius: its hole
 on the axis), each next J from the last converged torus, its harmonics kept and the new
 ones at 0 (--no-continued: every J from the image); at each further eps the largest J alone,
-from the last converged torus at the eps before (from the image where none is). Against them, the axisymmetric torus on the same
-grid and eps (from the circular tube; above v 0.84 from the torus solved at 0.84). Under
-mpiexec; the table is rewritten after every solve.
+from the last converged torus at the eps before (from the image where none is). Against
+them, the axisymmetric torus on the same grid and eps (from the circular tube; above v 0.84
+from the torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
         [--eps 0.04,0.03] [--box 0.8,1.0] [--hessian coupled] [--no-continued] [--until HH:MM]
@@ -129,8 +129,8 @@ def tube(r, theta):
 def write(args, record, rows):
     lines = report.header('Genus one: the Moebius tori against the axisymmetric torus', record)
     start = ("at the first eps the first J from -pf_start moebius, each next from the last "
-             "converged J (its harmonics, the new ones at 0), at each further eps the largest J "
-             "alone from the last converged state" if args.continued
+             "converged torus (its harmonics, the new ones at 0), at each further eps the "
+             "largest J alone from the last converged torus (from the image where none is)" if args.continued
              else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
               f"{nodes(args.box)} nodes of the full box (the paper's spacing), {args.ranks} "
