@@ -130,8 +130,8 @@ def write(args, record, rows):
     lines = report.header('Genus one: the Moebius tori against the axisymmetric torus', record)
     start = ("at the first eps the first J from -pf_start moebius, each next from the last "
              "converged torus (its harmonics, the new ones at 0), at each further eps the "
-             "largest J alone from the last converged torus (from the image where none is)" if args.continued
-             else "every J from -pf_start moebius")
+             "largest J alone from the last converged torus (from the image where none is)"
+             if args.continued else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
               f"{nodes(args.box)} nodes of the full box (the paper's spacing), {args.ranks} "
               "rank(s); harmonics m = 0, 1, ..., J, "
