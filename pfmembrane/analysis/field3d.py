@@ -17,6 +17,7 @@ from scipy.interpolate import RectBivariateSpline
 from pfmembrane.analysis import surface
 from pfmembrane.io import checkpoint
 from pfmembrane.kernels.basis import folded_basis
+from pfmembrane.kernels.initial import reduced_volume
 from pfmembrane.kernels.maxent import interpolate
 
 RASTER = 1.0 / 6      # raster step, in eps
@@ -182,8 +183,10 @@ def projected(field, box, eps, k, c0, radius, v, iterations=8):
     reduced volume v within LEVEL_TOL (a field too diffuse: the secant
     leaves phi_h in (-0.9, 0.9))."""
     def reduced(c, step):
-        m = measure(_Level(field, c), box, eps, k, c0, step)
-        return 6 * np.sqrt(np.pi) * m.volume / m.area ** 1.5 - v
+        # area and volume alone: the energy (the Hessian at every vertex) waits for the level
+        level = _Level(field, c)
+        parts = surface.components(surface.extract(level, *_bounds(field, box, eps, step), step))
+        return reduced_volume(sum(p.area for p in parts), sum(p.volume for p in parts)) - v
     coarse_step = MARCH * eps
     c = [0.0, 0.05]
     f = [reduced(x, coarse_step) for x in c]

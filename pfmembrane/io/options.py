@@ -328,7 +328,8 @@ def validate_settings(s, prefix=''):
         raise UsageError(f"-{prefix}pf_hessian: unknown Hessian {s.hessian!r} "
                          f"(choose {', '.join(HESSIANS)})")
     if s.push not in PUSHES:
-        raise UsageError(f"-{prefix}pf_push: unknown push {s.push!r} (choose {', '.join(PUSHES)})")
+        raise UsageError(f"-{prefix}pf_push: unknown push {s.push!r} "
+                         f"(choose {', '.join(PUSHES)})")
     if s.stage1 not in STAGE1:
         raise UsageError(f"-{prefix}pf_stage1: unknown solver {s.stage1!r} "
                          f"(choose {', '.join(STAGE1)})")
