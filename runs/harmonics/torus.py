@@ -2,13 +2,13 @@
 energy 2 pi^2, E = pi^2 k at C0 = 0 for every reduced volume from 0.7116 to about 0.99) are
 not axisymmetric, so only harmonics reach them. The harmonics are m = 0, 1, ..., J
 (-pf_dihedral 1, cosines: the mirror plane through the hole's centre; the half box: the
-mirror z = zc), the moment X holding the translation across the axis. At the first eps the
-first J starts from the image with the scene's reduced volume (-pf_start moebius: its hole
-on the axis), each next J from the last converged torus, its harmonics kept and the new
-ones at 0 (--no-continued: every J from the image); at each further eps the largest J alone,
-from the last converged torus at the eps before (from the image where none is). Against
-them, the axisymmetric torus on the same grid and eps (from the circular tube; above v 0.84
-from the torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
+mirror z = zc), the moment X holding the translation across the axis. At each eps the first
+J starts from the image with the scene's reduced volume (-pf_start moebius: its hole on the
+axis), each next J from the last converged torus at that eps, its harmonics kept and the
+new ones at 0 (--no-continued: every J from the image). A torus is not continued in eps:
+the coupled Newton steps from one eps's torus to the next stall. Against them, the
+axisymmetric torus on the same grid and eps (from the circular tube; above v 0.84 from the
+torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
         [--eps 0.04,0.03] [--box 0.8,1.0] [--hessian coupled] [--no-continued] [--until HH:MM]
@@ -61,12 +61,12 @@ def main(argv=None):
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
         grid = pf.Grid.uniform(scene, nodes=nodes(args.box))
-        previous = None
-        for n, eps in enumerate(map(float, args.eps.split(','))):
+        for eps in map(float, args.eps.split(',')):
             t = time.perf_counter()
             axi, began = axisymmetric(scene, grid, eps)
             rows.append(row(v, eps, 0, began, axi, time.perf_counter() - t))
-            for J in highest if n == 0 else highest[-1:]:
+            previous = None
+            for J in highest:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
                     rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 11)
                     continue
@@ -75,7 +75,7 @@ def main(argv=None):
                 if previous is None:
                     options['pf_start'] = 'moebius'
                 began = ('Moebius' if previous is None else
-                         f"J = {previous.attrs['harmonics_highest']}, eps {previous.eps:g}")
+                         f"J = {previous.attrs['harmonics_highest']}")
                 t = time.perf_counter()
                 r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
                 rows.append(row(v, eps, J, began, r, time.perf_counter() - t))
@@ -128,9 +128,8 @@ def tube(r, theta):
 
 def write(args, record, rows):
     lines = report.header('Genus one: the Moebius tori against the axisymmetric torus', record)
-    start = ("at the first eps the first J from -pf_start moebius, each next from the last "
-             "converged torus (its harmonics, the new ones at 0), at each further eps the "
-             "largest J alone from the last converged torus (from the image where none is)"
+    start = ("at each eps the first J from -pf_start moebius, each next from the last "
+             "converged torus at that eps (its harmonics, the new ones at 0)"
              if args.continued else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
               f"{nodes(args.box)} nodes of the full box (the paper's spacing), {args.ranks} "
