@@ -46,7 +46,7 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     command-line names without the dash to values, PETSc's (`stage2_snes_monitor`,
     `stage1_tao_type`) and the solver's own (`pf_stage1`, `pf_mu`,
     `pf_stage1_rtol`, `pf_stage1_max_it`, `pf_stage2_rtol`, `pf_monitor`,
-    `pf_force`, `pf_start`, `pf_summary`); they live under the solve's options
+    `pf_force`, `pf_start`, `pf_summary`, `pf_path`); they live under the solve's options
     `prefix` (by default one of its own, so `-PREFIX...` on the command line
     reaches only this solve) and leave the database as they found it
     (`parallel.problem.Problem`); those nothing used are warned of and listed
@@ -62,8 +62,10 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     family's saddle downhill and does not wander where it is stable; one
     harmonic pushed, the push follows the branch's centre manifold to its
     leading-order amplitude (`pf_push` curved). The result's times are the
-    sum, its `energy_history` the harmonic solve's, `start_unstable_m` the
-    harmonics pushed, `start_push` the push's largest |psi|.
+    sum, its `energy_history` (E at every iteration; with `pf_path` also
+    `energy_path`, E of each iterate put on the constraints) the harmonic
+    solve's, `start_unstable_m` the harmonics pushed, `start_push` the push's
+    largest |psi|.
 
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
@@ -239,6 +241,7 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
         max_phi = problem.assembly.max_abs_phi(x)
         nu, stats = problem.nu, problem.solver.stats
         history = np.array(problem.solver.history)
+        path = np.array(problem.solver.path) if problem.settings.path else None
         factorizations = problem.solver.factorizations
         unused = [k[len(problem.prefix):] for k in problem.options.unused(mpi)]
         topology0 = start_topology(scene, start, problem.settings.start)
@@ -271,6 +274,8 @@ def _solve(scene, grid, eps, start, options, prefix, checks):
                  peak_rss_mb=mpi.allreduce(
                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX),
                  box=np.asarray(scene.box), energy_history=history)
+    if path is not None:
+        attrs['energy_path'] = path
     if scene.harmonics:
         attrs.update(harmonics=scene.harmonic_set.m, harmonics_highest=scene.harmonics,
                      dihedral=scene.dihedral)

@@ -9,6 +9,7 @@ A script `runs/<study>/<study>.py` calls `ensure_ranks(np, __file__, argv)`
 without it; `module` may be a module name (`python -m MODULE`) or a script
 path."""
 import datetime
+import functools
 import os
 import subprocess
 import sys
@@ -116,9 +117,18 @@ def all_or_none(world):
 
 
 def seconds_left(until):
-    """Seconds to `until` (HH:MM UTC today), inf without it: a study's deadline."""
+    """Seconds to `until` (HH:MM UTC), inf without it: a study's deadline, the
+    first HH:MM after the study first asks (a run started at 23:20 with
+    --until 01:25 has two hours, not none)."""
     if not until:
         return float('inf')
+    return (_deadline(until) - datetime.datetime.now(datetime.timezone.utc)).total_seconds()
+
+
+@functools.lru_cache(maxsize=None)
+def _deadline(until):
+    """The first HH:MM `until` UTC after now, fixed at the first call."""
     now = datetime.datetime.now(datetime.timezone.utc)
     h, m = map(int, until.split(':'))
-    return (now.replace(hour=h, minute=m, second=0, microsecond=0) - now).total_seconds()
+    at = now.replace(hour=h, minute=m, second=0, microsecond=0)
+    return at if at > now else at + datetime.timedelta(days=1)

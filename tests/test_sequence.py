@@ -116,3 +116,14 @@ def test_the_table_compares_a_half_box_with_its_full_box_grid(tmp_path, n_nodes,
     assert cells[11] == f'{100 * (9.18 / SHARP["oblate"] - 1):.2f}%'
     assert cells[12] == f'{SHARP_ERROR[paper][0.01]:.2f}%'
     assert (total, ranks) == (4.0, [2])
+
+
+def test_a_deadline_is_the_next_such_time_and_stays_put():
+    # --until HH:MM is the first HH:MM after the study starts: one a minute gone is
+    # tomorrow's, and once fixed it does not move on as the clock passes it
+    import datetime
+    now = datetime.datetime.now(datetime.timezone.utc)
+    gone = (now - datetime.timedelta(minutes=1)).strftime('%H:%M')
+    assert 23 * 3600 < launch.seconds_left(gone) <= 24 * 3600
+    assert launch._deadline(gone) is launch._deadline(gone)
+    assert launch.seconds_left(None) == float('inf')

@@ -52,6 +52,7 @@ class Settings:
     stage2_rtol: float = 1e-10
     monitor: bool = False
     summary: bool = False
+    path: bool = False
     force: bool = False
     start: str = 'auto'
     perturb: float = 0.02
@@ -170,6 +171,9 @@ HELP = {
     'stage2_rtol': 'relative residual of the bordered Newton stage',
     'monitor': 'print one row per iteration (energy, residuals, max |phi|)',
     'summary': 'print one line per stage (the command line: always; the API: when asked)',
+    'path': 'record the energy path on the constraints: E of every iterate of both stages '
+            'put back on the area, volume and moments (result attribute energy_path; the '
+            'summary says where it rises)',
     'force': 'run even when eps is below what the grid resolves (result flagged)',
 }
 

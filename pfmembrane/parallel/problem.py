@@ -17,7 +17,7 @@ from pfmembrane.io.options import UsageError, read_settings, targets
 from pfmembrane.parallel.assembly import Assembly
 from pfmembrane.parallel.faults import Interrupted, OutOfTime
 from pfmembrane.parallel.petsc import Options, start
-from pfmembrane.parallel.solver import SolveError, Solver
+from pfmembrane.parallel.solver import PROJECT_RTOL, SolveError, Solver
 
 # Scene parameters a branch can follow (`at`).
 PARAMETERS = ('reduced_volume', 'c0', 'radius')
@@ -114,6 +114,8 @@ class Problem:
             status = getattr(e, 'status', 1)
             return (False, str(e), status, self.assembly.gradients(x, solver.gE, solver.gA),
                     logged)
+        if settings.summary and settings.path:
+            PETSc.Sys.Print(path_line(solver.path), comm=self.comm)
         return True, '', 0, vals, logged
 
     # -- what a continuation needs ---------------------------------------------
@@ -286,6 +288,18 @@ def assembly(discrete, eps, scene, coupled=False):
 
 
 _count = itertools.count(1)
+
+
+def path_line(path):
+    """One line on the energy path (E on the constraints at each iterate):
+    whether it falls all the way, else where and by how much it rises. The
+    constraints hold to PROJECT_RTOL, so E on them is known to about that
+    much of itself: smaller rises are rounding."""
+    rises = np.flatnonzero(np.diff(path) > PROJECT_RTOL * abs(path[0]))
+    if not len(rises):
+        return f"energy path: E on the constraints falls at every one of {len(path)} iterates"
+    return (f"energy path: E on the constraints rises at {len(rises)} of {len(path) - 1} "
+            f"iterations (first at {rises[0] + 1}, most by {np.diff(path).max():.3g})")
 
 
 def next_prefix():

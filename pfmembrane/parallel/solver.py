@@ -36,6 +36,10 @@ KRYLOV_RESTART = 200
 # near the answer the action's rounding floor can lie above rtol |F|, and GMRES's last
 # iterate is still a good direction (SNES's own test judges the step).
 KRYLOV_FAILURES = 5
+# The energy path (-pf_path) puts each iterate on the constraints to this residual,
+# relative to their scales, in at most this many Gauss-Newton steps.
+PROJECT_RTOL = 1e-12
+PROJECT_MAX_IT = 20
 
 
 class SolveError(Exception):
@@ -78,7 +82,9 @@ class Solver:
         self._ksps = {}  # direct solvers by options prefix (`direct_ksp`)
         self.mpi = problem.mpi
         self.stats = {}
-        self.history = []  # E at every iteration of both stages: the energy path
+        self.history = []  # E at every iteration of both stages
+        self.path = []  # ... with -pf_path, E of each iterate put on the constraints
+        self._projection = None  # work Vecs of `project`
 
     # -- helpers ---------------------------------------------------------------
     def evaluate(self, x):
@@ -119,8 +125,35 @@ class Solver:
         rhs = np.array([c.dot(self.gE) for c in self.C])
         return np.linalg.solve(G, rhs)
 
-    def row(self, stage, it, vals, res, gnorm):
+    def project(self, x):
+        """E at x put on the constraints c = c0, x itself unchanged: Gauss-Newton
+        steps y -= C^T (C C^T)^-1 (c - c0) along the constraints' gradients C
+        at y, the least change that meets them to first order (A alone is
+        nonlinear). On work Vecs of its own, so that the solver's gradients stay
+        those of x. Collective."""
+        P = self.P
+        if self._projection is None:
+            self._projection = (P.create_vec(), P.create_vec(), P.create_vec())
+        gE, gA, y = self._projection
+        x.copy(y)
+        C = P.constraint_gradients(gA)
+        for _ in range(PROJECT_MAX_IT):
+            vals = P.gradients(y, gE, gA)
+            res = P.constraints(vals) - P.targets
+            if np.all(np.abs(res) <= PROJECT_RTOL * self.scale):
+                return vals[0]
+            G = np.array([[a.dot(b) for b in C] for a in C])
+            for step, c in zip(np.linalg.solve(G, res), C):
+                y.axpy(-step, c)
+        raise SolveError(f"an iterate did not reach the constraints in {PROJECT_MAX_IT} "
+                         f"Gauss-Newton steps (residual {np.abs(res / self.scale).max():.2e})")
+
+    def row(self, stage, it, x, vals, res, gnorm):
+        """Record iterate `it` of `stage` (E, and with -pf_path E on the
+        constraints); print its row under -pf_monitor."""
         self.history.append(vals[0])
+        if self.p.path:
+            self.path.append(self.project(x))
         if self.p.monitor:
             rel = np.abs(res) / self.scale
             moment = ''.join(f"r{m} {r:.2e} " for m, r in zip(self.P.moments, rel[2:]))
@@ -161,7 +194,7 @@ class Solver:
             # after the first pass (a warm-up, or a restart's converged one) the
             # tolerance follows |grad L|
             gtol = 0.1 * g if outer == 1 else min(gtol, 0.1 * g)
-            self.row('AL', outer, vals, res, g)
+            self.row('AL', outer, x, vals, res, g)
             if rel.max() < self.p.stage1_rtol:
                 break
         else:
@@ -192,7 +225,7 @@ class Solver:
             lam = self.nu - res / mu
             self.combine(g, lam)
             gnorm = g.norm()
-            self.row('newton', it, vals, res, gnorm)
+            self.row('newton', it, x, vals, res, gnorm)
             if gtol is not None and gnorm <= gtol:
                 return it
             La = self._augmented(vals, res, mu)
@@ -357,7 +390,13 @@ class Solver:
         self._redundant_defaults(snes.getKSP(), 'stage2_')
         snes.setConvergenceHistory()
         # SNES monitors after the residual at the new iterate
-        snes.setMonitor(lambda snes, it, fnorm: self.history.append(last_vals[0][0]))
+        def monitor(snes, it, fnorm):
+            self.history.append(last_vals[0][0])
+            if self.p.path:
+                unpack(snes.getSolution())
+                self.path.append(self.project(xx))
+
+        snes.setMonitor(monitor)
         X0 = X.copy()
         snes.solve(None, X)
         reason = snes.getConvergedReason()
@@ -386,6 +425,8 @@ class Solver:
         tao = self.__dict__.pop('_tao_obj', None)
         if tao is not None:
             tao.destroy()
+        for v in self._projection or ():
+            v.destroy()
 
     # -- linear solvers --------------------------------------------------------
     def _configure_direct(self, ksp, stage):

@@ -39,9 +39,10 @@ def test_an_axisymmetric_state_stays_with_its_energy(axisymmetric):
 @pytest.fixture(scope='module')
 def pushed(axisymmetric):
     """A fresh solve with m = 0, 2, 4: the axisymmetric scene solved, then pushed
-    along m = 2 alone."""
+    along m = 2 alone; its energy path recorded."""
     grid, _ = axisymmetric
-    return pf.solve(dataclasses.replace(SCENE, harmonics=2, dihedral=2), grid, EPS, checks=True)
+    return pf.solve(dataclasses.replace(SCENE, harmonics=2, dihedral=2), grid, EPS, checks=True,
+                    options={'pf_path': True})
 
 
 def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric, pushed):
@@ -71,6 +72,43 @@ def test_the_unstable_m2_mode_leads_below_the_axisymmetric_family(axisymmetric, 
     # 1.0e-3 apart on the axisymmetric state
     assert (r.attrs['topology'], r.attrs['genus']) == ('1 sphere', 0.0)
     assert r.attrs['level_set_energy'] == pytest.approx(axi.attrs['level_set_energy'], rel=2e-3)
+
+
+def test_the_energy_falls_on_the_constraints_to_the_new_equilibrium(axisymmetric, pushed):
+    # -pf_path: E of every iterate put back on A and V (to 1e-12 of their scales, so E
+    # to about 1e-12 of itself). The push starts below the axisymmetric energy, E falls
+    # at every iterate of both stages (measured: by 5.6e-3 in all; once converged it
+    # moves by 1e-13) to the equilibrium's; E unprojected rises where stage 1 leaves
+    # the constraints
+    from pfmembrane.parallel.problem import path_line
+    grid, axi = axisymmetric
+    path, raw = pushed.attrs['energy_path'], pushed.attrs['energy_history']
+    assert len(path) == len(raw) and len(path) >= 4
+    assert path[0] < axi.energy
+    assert np.all(np.diff(path) <= 1e-12 * path[0])
+    assert 'falls at every one of' in path_line(path)
+    assert 'rises at 1 of 3 iterations (first at 2' in path_line([3.0, 2.0, 2.5, 1.0])
+    assert path[-1] == pytest.approx(pushed.energy, rel=1e-12)
+    assert np.any(np.diff(raw) > 0)
+
+
+def test_an_iterate_is_put_on_the_constraints(pushed):
+    # Solver.project: a field far off them (A and V off by percents) meets them to 1e-12
+    # of their scales, the solver's own gradients untouched; an equilibrium keeps its E
+    from pfmembrane.parallel.problem import Problem, next_prefix
+    with Problem(pushed.grid, pushed.scene, EPS, next_prefix()) as problem:
+        P, solver = problem.assembly, problem.solver
+        x = problem.vec(0.9 * pushed.phi)
+        vals, res = solver.evaluate(x)
+        gA = solver.gA.copy()
+        assert np.abs(res / solver.scale).max() > 1e-2
+        E = solver.project(x)
+        y = solver._projection[2]
+        assert np.all(np.abs(P.constraints(P.values(y)) - P.targets) <= 1e-12 * solver.scale)
+        assert E == pytest.approx(P.values(y)[0], rel=1e-14)
+        assert solver.gA.equal(gA)
+        assert solver.project(problem.vec(pushed.phi)) == pytest.approx(pushed.energy,
+                                                                        rel=1e-12)
 
 
 def test_the_curved_push_follows_the_centre_manifold_to_second_order(axisymmetric):
