@@ -42,6 +42,11 @@ PROJECT_RTOL = 1e-12
 PROJECT_MAX_IT = 20
 
 
+def gram(vectors):
+    """The Gram matrix of the Vecs `vectors` (the constraints' gradients). Collective."""
+    return np.array([[a.dot(b) for b in vectors] for a in vectors])
+
+
 class SolveError(Exception):
     """A stage that did not converge; carries the reason and a remedy."""
 
@@ -121,9 +126,8 @@ class Solver:
 
     def least_squares_multipliers(self):
         """nu minimizing |grad E - C^T nu|: keeps the initial guess on its branch."""
-        G = np.array([[a.dot(b) for b in self.C] for a in self.C])
         rhs = np.array([c.dot(self.gE) for c in self.C])
-        return np.linalg.solve(G, rhs)
+        return np.linalg.solve(gram(self.C), rhs)
 
     def project(self, x):
         """E at x put on the constraints c = c0, x itself unchanged: Gauss-Newton
@@ -142,8 +146,7 @@ class Solver:
             res = P.constraints(vals) - P.targets
             if np.all(np.abs(res) <= PROJECT_RTOL * self.scale):
                 return vals[0]
-            G = np.array([[a.dot(b) for b in C] for a in C])
-            for step, c in zip(np.linalg.solve(G, res), C):
+            for step, c in zip(np.linalg.solve(gram(C), res), C):
                 y.axpy(-step, c)
         raise SolveError(f"an iterate did not reach the constraints in {PROJECT_MAX_IT} "
                          f"Gauss-Newton steps (residual {np.abs(res / self.scale).max():.2e})")

@@ -24,6 +24,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from pfmembrane.kernels import azimuthal as kernel
+from pfmembrane.parallel.solver import gram
 
 MAX_SHIFTS = 40  # factorizations per m, should the shift have to move far below 0
 
@@ -229,8 +230,7 @@ class ModeAnalysis:
             x.setArray(np.random.default_rng(m).standard_normal(lay.nglobal)
                        [lay.start:lay.start + lay.nowned])
         if m == 0:
-            G = np.array([[a.dot(b) for b in self.C] for a in self.C])
-            for c, a in zip(self.C, np.linalg.solve(G, [c.dot(x) for c in self.C])):
+            for c, a in zip(self.C, np.linalg.solve(gram(self.C), [c.dot(x) for c in self.C])):
                 x.axpy(-a, c)
         v = self.K.createVecRight()
         v.zeroEntries()
