@@ -56,7 +56,7 @@ def main(argv=None):
     args.ranks = mpi.Get_size()
     args.box = tuple(map(float, args.box.split(',')))
     record = report.provenance()
-    rows = []
+    rows, levels = [], {}
     highest = [int(J) for J in args.highest.split(',')]
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
@@ -65,6 +65,7 @@ def main(argv=None):
             t = time.perf_counter()
             axi, began = axisymmetric(scene, grid, eps)
             rows.append(row(v, eps, 0, began, axi, time.perf_counter() - t))
+            tori = levels[v, eps] = {0: torus_energy(axi)}
             previous = None
             for J in highest:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
@@ -79,13 +80,14 @@ def main(argv=None):
                 t = time.perf_counter()
                 r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
                 rows.append(row(v, eps, J, began, r, time.perf_counter() - t))
+                tori[J] = torus_energy(r)
                 # a state whose hole closed continues nothing: the next starts anew
                 if args.continued and r.converged and r.attrs.get('genus') == 1:
                     previous = r
                 if mpi.Get_rank() == 0:
-                    write(args, record, rows)
+                    write(args, record, rows, levels)
     if mpi.Get_rank() == 0:
-        write(args, record, rows)
+        write(args, record, rows, levels)
 
 
 def axisymmetric(scene, grid, eps):
@@ -96,6 +98,42 @@ def axisymmetric(scene, grid, eps):
         return pf.solve(scene, grid, eps, checks=True), 'circular tube'
     ring = pf.solve(dataclasses.replace(scene, reduced_volume=RING_MAX), grid, eps)
     return pf.solve(scene, grid, eps, start=ring, checks=True), f"v {RING_MAX} solved"
+
+
+def torus_energy(r):
+    """The level-set energy of a converged torus (genus 1), else NaN."""
+    ok = r.converged and r.attrs.get('genus') == 1
+    return r.attrs.get('level_set_energy', np.nan) if ok else np.nan
+
+
+def extrapolated(energies):
+    """The level-set energy as J -> infinity from the tori at the last three J
+    (equally spaced): Aitken's delta-squared limit, where the truncation error
+    falls geometrically, by the ratio q of the last two differences (0 < q <
+    1). Returns (limit, q), the limit NaN where that does not hold."""
+    tori = sorted((J, e) for J, e in energies.items() if J and np.isfinite(e))[-3:]
+    if len(tori) < 3 or tori[1][0] - tori[0][0] != tori[2][0] - tori[1][0]:
+        return np.nan, np.nan
+    (_, e0), (_, e1), (_, e2) = tori
+    d1, d2 = e1 - e0, e2 - e1
+    q = d2 / d1 if d1 else np.nan
+    return (e2 - d2 * d2 / (d2 - d1) if 0 < q < 1 else np.nan), q
+
+
+def trend(levels):
+    """Rows of the trend in eps: the axisymmetric torus's level-set energy, the
+    Moebius torus's at its largest J and as J -> infinity (`extrapolated`),
+    each against pi^2."""
+    out = []
+    for (v, eps), energies in levels.items():
+        axi = energies[0]
+        tori = [(J, e) for J, e in sorted(energies.items()) if J and np.isfinite(e)]
+        J, last = tori[-1] if tori else ('-', np.nan)
+        limit, q = extrapolated(energies)
+        out.append([v, eps, f"{axi:.5f}", f"{axi / PI2 - 1:+.2%}", J, f"{last:.5f}",
+                    f"{last / PI2 - 1:+.2%}", f"{limit:.5f}", f"{limit / PI2 - 1:+.3%}",
+                    f"{q:.3f}"])
+    return out
 
 
 def row(v, eps, J, began, r, seconds):
@@ -126,7 +164,7 @@ def tube(r, theta):
     return f"{inside.min():.3f} - {inside.max():.3f}" if len(inside) else '-'
 
 
-def write(args, record, rows):
+def write(args, record, rows, levels):
     lines = report.header('Genus one: the Moebius tori against the axisymmetric torus', record)
     start = ("at each eps the first J from -pf_start moebius, each next from the last "
              "converged torus at that eps (its harmonics, the new ones at 0)"
@@ -150,6 +188,14 @@ def write(args, record, rows):
     lines += report.table(['v', 'eps', 'J', 'from', 'E', 'E / pi^2 - 1', 'level-set E',
                            'vs pi^2', 'level set v', 'topology', 'genus', 'tube at theta = 0 (r)',
                            'at theta = pi', 'nu_X', 'Newton its (1/2)', 'wall s'], rows)
+    lines += ['', "The trend in eps: the level-set energies of the axisymmetric torus and of "
+              "the Moebius torus at its largest J, and the latter as J -> infinity, Aitken's "
+              "delta-squared limit from the last three J (the truncation error falling "
+              "geometrically by q, the ratio of the last two differences; NaN unless 0 < q "
+              "< 1). Each the 3D surface phi_h = 0 as it is.", '']
+    lines += report.table(['v', 'eps', 'axisymmetric level-set E', 'vs pi^2', 'J',
+                           'Moebius level-set E', 'vs pi^2', 'J -> infinity', 'vs pi^2', 'q'],
+                          trend(levels))
     report.write(args.out, lines)
 
 
