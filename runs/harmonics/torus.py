@@ -12,7 +12,7 @@ torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
         [--eps 0.04,0.03] [--box 0.8,1.0] [--hessian coupled] [--no-continued] [--until HH:MM]
-        [--out runs/harmonics/torus.md]
+        [--out runs/harmonics/torus_eps.md]
 """
 import argparse
 import dataclasses
@@ -49,7 +49,7 @@ def main(argv=None):
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
     ap.add_argument('--no-continued', dest='continued', action='store_false',
                     help='every J from the Moebius image')
-    ap.add_argument('--out', default=os.path.join(HERE, 'torus.md'))
+    ap.add_argument('--out', default=os.path.join(HERE, 'torus_eps.md'))
     args = ap.parse_args(argv)
     PETSc = pf.api.petsc(sys.argv[:1])
     mpi = PETSc.COMM_WORLD.tompi4py()
