@@ -71,8 +71,9 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     the reason in `message`. Raises `io.options.UsageError` for bad input.
     """
     if scene.harmonics and start is None and (options or {}).get('pf_start') not in STARTS_3D:
-        axisymmetric = _solve(dataclasses.replace(scene, harmonics=0), grid, eps, None, options,
-                              None, False)
+        # its energy path would be discarded with it: the result's is the harmonic solve's
+        axisymmetric = _solve(dataclasses.replace(scene, harmonics=0), grid, eps, None,
+                              {**(options or {}), 'pf_path': False}, None, False)
         if not axisymmetric.converged:
             return axisymmetric
         t = time.perf_counter()

@@ -99,8 +99,8 @@ def write(args, record, times, last, peak):
               "Krylov per Newton step: stage 2's GMRES iterations over its Newton steps (the "
               "axisymmetric stage 2 factors its exact Jacobian). Factorizations: both stages' "
               "of the harmonic solve (the axisymmetric one's not counted). Peak memory: the "
-              "largest resident set of the ranks, in the first round (axisymmetric, then each set in turn: "
-              "a peak only grows).", '']
+              "largest resident set of the ranks, in the first round (axisymmetric, then each "
+              "set in turn: a peak only grows).", '']
     lines += report.table(['solve', 'converged', 'E', 'wall s (each run)', 'wall / axisymmetric',
                            'stage 1 / 2 s', 'Newton its (stage 1 / 2)',
                            'Krylov its per Newton step', 'factorizations', 'peak MB', 'push'],
