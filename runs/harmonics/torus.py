@@ -11,8 +11,8 @@ axisymmetric torus on the same grid and eps (from the circular tube; above v 0.8
 torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
-        [--eps 0.04,0.03] [--box 0.8,1.0] [--hessian coupled] [--no-continued] [--until HH:MM]
-        [--out runs/harmonics/torus_eps.md]
+        [--eps 0.04,0.03] [--box 0.8,1.0] [--nodes N] [--hessian coupled] [--no-continued]
+        [--until HH:MM] [--out runs/harmonics/torus_eps.md]
 """
 import argparse
 import dataclasses
@@ -46,6 +46,9 @@ def main(argv=None):
     ap.add_argument('--hessian', default='coupled', help='-pf_hessian of the harmonic solves')
     ap.add_argument('--box', default='0.8,1.0', help='Rb,Zb (the Moebius image at v 0.85 '
                     'reaches r 0.68: 0.85,1.0)')
+    ap.add_argument('--nodes', type=int, default=None,
+                    help="the uniform grid's node count in the full box (default: the paper's "
+                    "spacing); the hole at v 0.85 needs a smaller eps than that resolves")
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
     ap.add_argument('--no-continued', dest='continued', action='store_false',
                     help='every J from the Moebius image')
@@ -55,12 +58,14 @@ def main(argv=None):
     mpi = PETSc.COMM_WORLD.tompi4py()
     args.ranks = mpi.Get_size()
     args.box = tuple(map(float, args.box.split(',')))
+    args.nodes = args.nodes or nodes(args.box)
     record = report.provenance()
     rows, levels = [], {}
     highest = [int(J) for J in args.highest.split(',')]
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
-        grid = pf.Grid.uniform(scene, nodes=nodes(args.box))
+        grid = pf.Grid.uniform(scene, nodes=args.nodes)
+        args.eps_min = grid.eps_min
         for eps in map(float, args.eps.split(',')):
             t = time.perf_counter()
             axi, began = axisymmetric(scene, grid, eps)
@@ -170,7 +175,8 @@ def write(args, record, rows, levels):
              "converged torus at that eps (its harmonics, the new ones at 0)"
              if args.continued else "every J from -pf_start moebius")
     lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
-              f"{nodes(args.box)} nodes of the full box (the paper's spacing), {args.ranks} "
+              f"{args.nodes} nodes of the full box ({nodes(args.box)} at the paper's spacing), "
+              f"eps_min {args.eps_min:.4g}, {args.ranks} "
               "rank(s); harmonics m = 0, 1, ..., J, "
               f"{start}, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
               "energy of genus one at these v (sharp, exact). Level-set E: the energy of the "
