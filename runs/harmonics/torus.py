@@ -11,8 +11,8 @@ axisymmetric torus on the same grid and eps (from the circular tube; above v 0.8
 torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
-        [--eps 0.04,0.03] [--box 0.8,1.0] [--nodes N] [--hessian coupled] [--no-continued]
-        [--until HH:MM] [--out runs/harmonics/torus_eps.md]
+        [--eps 0.04,0.03] [--box 0.8,1.0] [--nodes N | --scaled] [--hessian coupled]
+        [--no-continued] [--until HH:MM] [--out runs/harmonics/torus_eps.md]
 """
 import argparse
 import dataclasses
@@ -31,11 +31,13 @@ PI2 = np.pi ** 2
 # The circular tube starts the axisymmetric torus up to its largest reduced volume, the
 # horn torus's 3 / (2 sqrt pi) = 0.846.
 RING_MAX = 0.84
+PAPER_EPS = 0.04
 
 
-def nodes(box):
-    """The uniform grid's node count in `box` at the paper's spacing (6,124 in 1.5 x 2)."""
-    return round(6124 * box[0] * box[1] / (1.5 * 2.0))
+def nodes(box, eps=PAPER_EPS):
+    """The uniform grid's node count in `box` with the paper's ratio of eps to the
+    spacing (6,124 nodes in 1.5 x 2 at eps 0.04)."""
+    return round(6124 * box[0] * box[1] / (1.5 * 2.0) * (PAPER_EPS / eps) ** 2)
 
 
 def main(argv=None):
@@ -49,6 +51,9 @@ def main(argv=None):
     ap.add_argument('--nodes', type=int, default=None,
                     help="the uniform grid's node count in the full box (default: the paper's "
                     "spacing); the hole at v 0.85 needs a smaller eps than that resolves")
+    ap.add_argument('--scaled', action='store_true',
+                    help="each eps on its own grid, with the paper's ratio of eps to the "
+                    "spacing: the trend in eps at a fixed resolution of the interface")
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
     ap.add_argument('--no-continued', dest='continued', action='store_false',
                     help='every J from the Moebius image')
@@ -58,23 +63,27 @@ def main(argv=None):
     mpi = PETSc.COMM_WORLD.tompi4py()
     args.ranks = mpi.Get_size()
     args.box = tuple(map(float, args.box.split(',')))
-    args.nodes = args.nodes or nodes(args.box)
+    if args.scaled and args.nodes:
+        ap.error('--nodes or --scaled, not both')
     record = report.provenance()
     rows, levels = [], {}
     highest = [int(J) for J in args.highest.split(',')]
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
-        grid = pf.Grid.uniform(scene, nodes=args.nodes)
-        args.eps_min = grid.eps_min
+        built = None
         for eps in map(float, args.eps.split(',')):
+            count = nodes(args.box, eps) if args.scaled else args.nodes or nodes(args.box)
+            if count != built:
+                grid, built = pf.Grid.uniform(scene, nodes=count), count
             t = time.perf_counter()
             axi, began = axisymmetric(scene, grid, eps)
-            rows.append(row(v, eps, 0, began, axi, time.perf_counter() - t))
+            rows.append(row(v, eps, grid, 0, began, axi, time.perf_counter() - t))
             tori = levels[v, eps] = {0: torus_energy(axi)}
             previous = None
             for J in highest:
                 if mpi.bcast(seconds_left(args.until), root=0) < 60:
-                    rows.append([v, eps, J, '', 'skipped (deadline)'] + [''] * 11)
+                    rows.append([v, eps, grid.n_nodes, f"{grid.eps_min:.4f}", J, '',
+                                 'skipped (deadline)'] + [''] * 11)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
                 options = {'pf_hessian': args.hessian}
@@ -84,7 +93,7 @@ def main(argv=None):
                          f"J = {previous.attrs['harmonics_highest']}")
                 t = time.perf_counter()
                 r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
-                rows.append(row(v, eps, J, began, r, time.perf_counter() - t))
+                rows.append(row(v, eps, grid, J, began, r, time.perf_counter() - t))
                 tori[J] = torus_energy(r)
                 # a state whose hole closed continues nothing: the next starts anew
                 if args.continued and r.converged and r.attrs.get('genus') == 1:
@@ -141,15 +150,15 @@ def trend(levels):
     return out
 
 
-def row(v, eps, J, began, r, seconds):
-    """One table row: the solve's energies against pi^2, its topology, the X
-    multiplier, its wall time."""
+def row(v, eps, grid, J, began, r, seconds):
+    """One table row: the grid, the solve's energies against pi^2, its topology,
+    the X multiplier, its wall time."""
+    first = [v, eps, grid.n_nodes, f"{grid.eps_min:.4f}", J or 'axisymmetric', began]
     if not r.converged:
-        return [v, eps, J or 'axisymmetric', began, f"not converged ({r.message})"] + \
-            [''] * 10 + [f"{seconds:.0f}"]
+        return first + [f"not converged ({r.message})"] + [''] * 10 + [f"{seconds:.0f}"]
     ls = r.attrs.get('level_set_energy', np.nan)
     genus = r.attrs.get('genus', '')
-    return [v, eps, J or 'axisymmetric', began, f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
+    return first + [f"{r.energy:.5f}", f"{r.energy / PI2 - 1:+.2%}",
             f"{ls:.5f}", f"{ls / PI2 - 1:+.2%}", f"{r.level_set_reduced_volume:.4f}",
             r.attrs.get('topology', '-'),
             genus if genus == '' else int(genus), tube(r, 0.0), tube(r, np.pi),
@@ -174,10 +183,14 @@ def write(args, record, rows, levels):
     start = ("at each eps the first J from -pf_start moebius, each next from the last "
              "converged torus at that eps (its harmonics, the new ones at 0)"
              if args.continued else "every J from -pf_start moebius")
+    grids = ("at each eps its own uniform grid, with the paper's ratio of eps to the "
+             "spacing (eps 0.04 on 6,124 nodes of 1.5 x 2)" if args.scaled else
+             "one uniform grid " + ("at the paper's spacing" if args.nodes is None else
+                                    f"of {args.nodes} nodes in the full box"))
     lines += [f"C0 = 0, R 0.4, box {args.box[0]:g} x {args.box[1]:g} as a half box, "
-              f"{args.nodes} nodes of the full box ({nodes(args.box)} at the paper's spacing), "
-              f"eps_min {args.eps_min:.4g}, {args.ranks} "
-              "rank(s); harmonics m = 0, 1, ..., J, "
+              f"{grids} (nodes: those of the half box, solved; eps_min: the smallest eps "
+              "the grid resolves), "
+              f"{args.ranks} rank(s); harmonics m = 0, 1, ..., J, "
               f"{start}, -pf_hessian {args.hessian}. pi^2 = {PI2:.6f} is the least "
               "energy of genus one at these v (sharp, exact). Level-set E: the energy of the "
               "surface phi_h = 0 as it is (the curve of revolution for the axisymmetric torus, "
@@ -191,9 +204,10 @@ def write(args, record, rows, levels):
               "the nodes of the mirror plane z = zc where the nodal phi > 0 at theta = 0 and "
               "pi, the section of the tube on either side of the axis; the start's is "
               "lopsided, its hole's centre on the axis.", '']
-    lines += report.table(['v', 'eps', 'J', 'from', 'E', 'E / pi^2 - 1', 'level-set E',
-                           'vs pi^2', 'level set v', 'topology', 'genus', 'tube at theta = 0 (r)',
-                           'at theta = pi', 'nu_X', 'Newton its (1/2)', 'wall s'], rows)
+    lines += report.table(['v', 'eps', 'nodes', 'eps_min', 'J', 'from', 'E', 'E / pi^2 - 1',
+                           'level-set E', 'vs pi^2', 'level set v', 'topology', 'genus',
+                           'tube at theta = 0 (r)', 'at theta = pi', 'nu_X', 'Newton its (1/2)',
+                           'wall s'], rows)
     lines += ['', "The trend in eps: the level-set energies of the axisymmetric torus and of "
               "the Moebius torus at its largest J, and the latter as J -> infinity, Aitken's "
               "delta-squared limit from the last three J (the truncation error falling "
