@@ -4,15 +4,17 @@ not axisymmetric, so only harmonics reach them. The harmonics are m = 0, 1, ...,
 (-pf_dihedral 1, cosines: the mirror plane through the hole's centre; the half box: the
 mirror z = zc), the moment X holding the translation across the axis. At each eps the first
 J starts from the image with the scene's reduced volume (-pf_start moebius: its hole on the
-axis), each next J from the last converged torus at that eps, its harmonics kept and the
-new ones at 0 (--no-continued: every J from the image). A torus is not continued in eps:
+axis), or with --through from the image at a smaller v walked in v to the scene's, each
+next J from the last converged torus at that eps, its harmonics kept and the new ones at 0
+(--no-continued: every J from the image). A torus is not continued in eps:
 the coupled Newton steps from one eps's torus to the next stall. Against them, the
 axisymmetric torus on the same grid and eps (from the circular tube; above v 0.84 from the
 torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
         [--eps 0.04,0.03] [--box 0.8,1.0] [--nodes N | --scaled] [--hessian coupled]
-        [--no-continued] [--until HH:MM] [--out runs/harmonics/torus_eps.md]
+        [--through 0.8,0.82,0.84] [--no-continued] [--until HH:MM]
+        [--out runs/harmonics/torus_eps.md]
 """
 import argparse
 import dataclasses
@@ -54,6 +56,11 @@ def main(argv=None):
     ap.add_argument('--scaled', action='store_true',
                     help="each eps on its own grid, with the paper's ratio of eps to the "
                     "spacing: the trend in eps at a fixed resolution of the interface")
+    ap.add_argument('--through', default='',
+                    help="v1,v2,...: each J chain starts from the Moebius image at v1 and "
+                    "walks in v through the others to the scene's v, each solve from the "
+                    "last (from the image at v 0.85 the hole or the thin side closes: "
+                    "0.8,0.82,0.84)")
     ap.add_argument('--until', default=None, help='HH:MM UTC: no solve starts after it')
     ap.add_argument('--no-continued', dest='continued', action='store_false',
                     help='every J from the Moebius image')
@@ -68,6 +75,7 @@ def main(argv=None):
     record = report.provenance()
     rows, levels = [], {}
     highest = [int(J) for J in args.highest.split(',')]
+    through = [float(u) for u in args.through.split(',') if u]
     for v in map(float, args.v.split(',')):
         scene = pf.Scene(reduced_volume=v, branch='torus', c0=0.0, box=args.box, symmetric=True)
         built = None
@@ -86,22 +94,44 @@ def main(argv=None):
                                  'skipped (deadline)'] + [''] * 11)
                     continue
                 harmonic = dataclasses.replace(scene, harmonics=J, dihedral=1)
-                options = {'pf_hessian': args.hessian}
+                began = 'Moebius'
                 if previous is None:
-                    options['pf_start'] = 'moebius'
-                began = ('Moebius' if previous is None else
-                         f"J = {previous.attrs['harmonics_highest']}")
-                t = time.perf_counter()
-                r = pf.solve(harmonic, grid, eps, start=previous, options=options, checks=True)
-                rows.append(row(v, eps, grid, J, began, r, time.perf_counter() - t))
+                    # the walk in v: its tori are rows of their own
+                    for u in through:
+                        r, seconds = solve(dataclasses.replace(harmonic, reduced_volume=u),
+                                           grid, eps, previous, args.hessian)
+                        rows.append(row(u, eps, grid, J, began, r, seconds))
+                        previous = r if is_torus(r) else None
+                        if previous is None:
+                            break
+                        began = f"v {u}"
+                else:
+                    began = f"J = {previous.attrs['harmonics_highest']}"
+                r, seconds = solve(harmonic, grid, eps, previous, args.hessian)
+                rows.append(row(v, eps, grid, J, began, r, seconds))
                 tori[J] = torus_energy(r)
                 # a state whose hole closed continues nothing: the next starts anew
-                if args.continued and r.converged and r.attrs.get('genus') == 1:
-                    previous = r
+                previous = r if args.continued and is_torus(r) else None
                 if mpi.Get_rank() == 0:
                     write(args, record, rows, levels)
     if mpi.Get_rank() == 0:
         write(args, record, rows, levels)
+
+
+def solve(scene, grid, eps, start, hessian):
+    """(result, wall seconds): a solve with harmonics from `start`, or from the
+    Moebius image (-pf_start moebius) where it is None."""
+    options = {'pf_hessian': hessian}
+    if start is None:
+        options['pf_start'] = 'moebius'
+    t = time.perf_counter()
+    r = pf.solve(scene, grid, eps, start=start, options=options, checks=True)
+    return r, time.perf_counter() - t
+
+
+def is_torus(r):
+    """Whether a solve converged to one surface of genus 1."""
+    return r.converged and r.attrs.get('genus') == 1
 
 
 def axisymmetric(scene, grid, eps):
@@ -116,8 +146,7 @@ def axisymmetric(scene, grid, eps):
 
 def torus_energy(r):
     """The level-set energy of a converged torus (genus 1), else NaN."""
-    ok = r.converged and r.attrs.get('genus') == 1
-    return r.attrs.get('level_set_energy', np.nan) if ok else np.nan
+    return r.attrs.get('level_set_energy', np.nan) if is_torus(r) else np.nan
 
 
 def extrapolated(energies):
@@ -183,6 +212,10 @@ def write(args, record, rows, levels):
     start = ("at each eps the first J from -pf_start moebius, each next from the last "
              "converged torus at that eps (its harmonics, the new ones at 0)"
              if args.continued else "every J from -pf_start moebius")
+    if args.through:
+        start += (f" (a chain's first J from the image at v {args.through.split(',')[0]}, "
+                  f"walked in v through {args.through} to the scene's, the walk's tori in "
+                  "rows of their own)")
     grids = ("at each eps its own uniform grid, with the paper's ratio of eps to the "
              "spacing (eps 0.04 on 6,124 nodes of 1.5 x 2)" if args.scaled else
              "one uniform grid " + ("at the paper's spacing" if args.nodes is None else
