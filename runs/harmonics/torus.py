@@ -9,7 +9,8 @@ next J from the last converged torus at that eps, its harmonics kept and the new
 (--no-continued: every J from the image). A torus is not continued in eps:
 the coupled Newton steps from one eps's torus to the next stall. Against them, the
 axisymmetric torus on the same grid and eps (from the circular tube; above v 0.84 from the
-torus solved at 0.84). Under mpiexec; the table is rewritten after every solve.
+torus solved at 0.84, or with --through walked as the Moebius tori are). Under mpiexec; the
+table is rewritten after every solve.
 
     mpiexec -n 2 python runs/harmonics/torus.py [--v 0.8] [--highest 2,4,6,8]
         [--eps 0.04,0.03] [--box 0.8,1.0] [--nodes N | --scaled] [--hessian coupled]
@@ -84,7 +85,7 @@ def main(argv=None):
             if count != built:
                 grid, built = pf.Grid.uniform(scene, nodes=count), count
             t = time.perf_counter()
-            axi, began = axisymmetric(scene, grid, eps)
+            axi, began = axisymmetric(scene, grid, eps, through)
             rows.append(row(v, eps, grid, 0, began, axi, time.perf_counter() - t))
             tori = levels[v, eps] = {0: torus_energy(axi)}
             previous = None
@@ -134,10 +135,19 @@ def is_torus(r):
     return r.converged and r.attrs.get('genus') == 1
 
 
-def axisymmetric(scene, grid, eps):
-    """The axisymmetric torus and where it started: the circular tube, or above
-    RING_MAX, where no ring torus of circular section has the scene's area and volume, the
-    solved torus at RING_MAX."""
+def axisymmetric(scene, grid, eps, through):
+    """The axisymmetric torus and where it started: with `through`, the circular tube at
+    the first of those v walked in v through the others to the scene's, as the Moebius
+    tori are (at v 0.85 a step from 0.84 closes the hole at eps 0.035); else the circular
+    tube, or above RING_MAX, where no ring torus of circular section has the scene's area
+    and volume, the solved torus at RING_MAX."""
+    if through:
+        walked = None
+        for u in through:
+            walked = pf.solve(dataclasses.replace(scene, reduced_volume=u), grid, eps,
+                              start=walked)
+        return pf.solve(scene, grid, eps, start=walked, checks=True), \
+            f"walked from v {through[0]}"
     if scene.reduced_volume <= RING_MAX:
         return pf.solve(scene, grid, eps, checks=True), 'circular tube'
     ring = pf.solve(dataclasses.replace(scene, reduced_volume=RING_MAX), grid, eps)
@@ -215,7 +225,8 @@ def write(args, record, rows, levels):
     if args.through:
         start += (f" (a chain's first J from the image at v {args.through.split(',')[0]}, "
                   f"walked in v through {args.through} to the scene's, the walk's tori in "
-                  "rows of their own)")
+                  "rows of their own; the axisymmetric torus walked the same way from the "
+                  "circular tube)")
     grids = ("at each eps its own uniform grid, with the paper's ratio of eps to the "
              "spacing (eps 0.04 on 6,124 nodes of 1.5 x 2)" if args.scaled else
              "one uniform grid " + ("at the paper's spacing" if args.nodes is None else
