@@ -1,5 +1,5 @@
-"""The genus-one study's limit in the highest harmonic J (runs/harmonics/torus.py):
-Aitken's delta-squared on the level-set energies at the last three J."""
+"""The genus-one study (runs/harmonics/torus.py): its limit in the highest harmonic J,
+Aitken's delta-squared on the level-set energies at the last three J, and its grids."""
 import numpy as np
 import pytest
 
@@ -24,3 +24,10 @@ def test_a_geometric_truncation_error_extrapolates_to_its_limit():
 ])
 def test_no_limit_without_three_geometrically_converging_j(energies):
     assert np.isnan(torus.extrapolated(energies)[0])
+
+
+def test_a_scaled_grid_keeps_the_papers_ratio_of_eps_to_the_spacing():
+    # the paper's 6,124 nodes of 1.5 x 2 at eps 0.04; halving eps quadruples the nodes
+    assert torus.nodes((1.5, 2.0)) == 6124
+    assert torus.nodes((1.5, 2.0), 0.02) == 4 * 6124
+    assert torus.nodes((0.8, 1.0), 0.05) == round(6124 * 0.8 / 3.0 * 0.64)
