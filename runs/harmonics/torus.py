@@ -102,10 +102,9 @@ def main(argv=None):
                         r, seconds = solve(dataclasses.replace(harmonic, reduced_volume=u),
                                            grid, eps, previous, args.hessian)
                         rows.append(row(u, eps, grid, J, began, r, seconds))
-                        previous = r if is_torus(r) else None
+                        previous, began = (r, f"v {u}") if is_torus(r) else (None, 'Moebius')
                         if previous is None:
                             break
-                        began = f"v {u}"
                 else:
                     began = f"J = {previous.attrs['harmonics_highest']}"
                 r, seconds = solve(harmonic, grid, eps, previous, args.hessian)
