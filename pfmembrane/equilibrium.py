@@ -17,7 +17,7 @@ from pfmembrane.kernels.azimuthal import RIGID
 from pfmembrane.parallel import petsc
 from pfmembrane.parallel.problem import Problem, next_prefix
 from pfmembrane.result import Result, multiplier_names
-from pfmembrane.starts import start_phi, start_topology
+from pfmembrane.starts import kind_of, start_phi, start_topology
 
 # Log events whose times a result reports: functionals and their derivatives
 # into Vec/Mat, and the linear solves (factorizations included).
@@ -70,7 +70,8 @@ def solve(scene, grid, eps, start=None, options=None, prefix=None, checks=False)
     Returns a `Result`; one that did not converge has `converged` False and
     the reason in `message`. Raises `io.options.UsageError` for bad input.
     """
-    if scene.harmonics and start is None and (options or {}).get('pf_start') not in STARTS_3D:
+    if scene.harmonics and start is None and \
+            kind_of(scene, (options or {}).get('pf_start', 'auto')) not in STARTS_3D:
         # its energy path would be discarded with it: the result's is the harmonic solve's
         axisymmetric = _solve(dataclasses.replace(scene, harmonics=0), grid, eps, None,
                               {**(options or {}), 'pf_path': False}, None, False)

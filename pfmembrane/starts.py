@@ -27,7 +27,21 @@ def start_topology(scene, start=None, shape='auto'):
     -pf_start choice)."""
     if start is not None:
         return start.attrs.get('topology', '')
-    return TOPOLOGY.get(start_kind(scene.branch, shape), '')
+    return TOPOLOGY.get(kind_of(scene, shape), '')
+
+
+def kind_of(p, shape='auto'):
+    """The kind of start -pf_start `shape` asks for (`p` a scene or `Params`): auto
+    starts a torus whose harmonics hold m = 1 on the half box from the Moebius image of
+    the Clifford torus with its reduced volume, where one has it (the least energy of
+    genus one there, which no axisymmetric torus reaches), any other scene from its
+    family's first start (`io.options.start_kind`)."""
+    if shape == 'auto' and p.branch == 'torus' and p.harmonics and p.dihedral == 1 \
+            and p.symmetric:
+        low, high = initial.moebius_range()
+        if low < p.reduced_volume < high:
+            return 'moebius'
+    return start_kind(p.branch, shape)
 
 
 def check_run(p):
@@ -46,8 +60,7 @@ def check_fits(p, eps=None, start=None, sharp=None):
     -pf_start choice, by default `p`'s or auto). A sharp start is checked
     only with its `sharp` curve, which the layers above compute
     (`sharp_shape`): without it the shape returned is None."""
-    start = start or getattr(p, 'start', 'auto')
-    kind = start_kind(p.branch, start)
+    kind = kind_of(p, start or getattr(p, 'start', 'auto'))
     if kind == 'sharp' and sharp is None:
         return kind, None
     scene = (f"-pf_radius {p.radius:g}, -pf_reduced_volume {p.reduced_volume:g}, "

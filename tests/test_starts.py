@@ -11,7 +11,7 @@ from pfmembrane.analysis.contour import zero_contour
 from pfmembrane.analysis.levelset import enclosed_volume, topology
 from pfmembrane.io import options
 from pfmembrane.io.options import Params, UsageError
-from pfmembrane.starts import check_fits
+from pfmembrane.starts import check_fits, kind_of, start_topology
 from pfmembrane.kernels import initial
 
 R = 0.4
@@ -270,3 +270,17 @@ def test_the_moebius_start_is_the_clifford_torus_inverted():
     assert phi[0] > 0.99 and phi[1] > 0.99 and phi[2] < -0.99 and phi[3] < -0.99
     with pytest.raises(ValueError, match='Moebius'):
         initial.moebius_torus(area, 0.7 * 4 / 3 * np.pi * R ** 3)
+
+
+def test_a_torus_with_the_harmonic_m1_starts_from_the_moebius_image():
+    # auto: the Moebius image where the harmonics hold m = 1 on the half box and a Moebius
+    # image has the reduced volume; the circular tube otherwise
+    torus = scene(branch='torus', reduced_volume=0.8, harmonics=8, dihedral=1, symmetric=True)
+    assert kind_of(torus) == 'moebius' and start_topology(torus) == '1 torus'
+    assert kind_of(torus, 'torus') == 'torus'
+    low, high = initial.moebius_range()
+    assert abs(low - CLIFFORD) < 1e-12 and 0.93 < high < 1.0
+    for other in (dict(harmonics=0), dict(dihedral=2), dict(symmetric=False),
+                  dict(reduced_volume=0.7), dict(branch='oblate')):
+        kind = kind_of(replace(torus, **other))
+        assert kind == ('spheroid' if other.get('branch') else 'torus')

@@ -120,8 +120,10 @@ HELP = {
     'branch': 'family of the initial guess: ' + ' | '.join(BRANCHES),
     'start': 'initial shape: ' + ' | '.join(START) + ' (auto: spheroid for oblate, prolate; '
              'sharp-interface shape for stomatocyte; two spheres for budded, pear (unequal); '
-             'a circular torus for torus); with harmonics also across (a prolate across the '
-             'axis) and moebius (a torus: the Clifford torus inverted to the reduced volume)',
+             'a circular torus for torus, with the harmonic m = 1 on the half box the Moebius '
+             'image where one has the reduced volume, 0.7116 to 0.98); with harmonics also '
+             'across (a prolate across the axis) and moebius (a torus: the Clifford torus '
+             'inverted to the reduced volume)',
     'nodes': 'approximate node count of the uniform grid (of the full box)',
     'symmetric': 'up-down symmetric scene: solve on the half box z >= Zb/2, mirror plane z = Zb/2, '
                  'no moment constraint (' + ', '.join(UP_DOWN) + ')',

@@ -1,6 +1,7 @@
 """Initial guesses with the scene's area and volume, tanh profiles of signed
 distances: spheroids, tori, two spheres on the axis, and the surface of a
 given generating curve (a sharp-interface shape)."""
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -132,6 +133,18 @@ def _inverted_clifford(d, n):
         abs(volume)
 
 
+def _moebius_reduced(d):
+    """The reduced volume of the Clifford torus inverted about (d, 0, 0)."""
+    return reduced_volume(*_inverted_clifford(d, 128)[2:])
+
+
+@lru_cache(maxsize=None)
+def moebius_range():
+    """(low, high): the reduced volumes of the Moebius images `moebius_torus`
+    builds, the Clifford torus's 0.71164 to that at MOEBIUS_D_MAX."""
+    return _moebius_reduced(0.0), _moebius_reduced(MOEBIUS_D_MAX)
+
+
 def moebius_torus(area, volume, samples=256):
     """The Moebius image of the Clifford torus with this area and volume: the
     unit inversion about (d, 0, 0) inside its hole (d = 0 the Clifford torus,
@@ -141,12 +154,11 @@ def moebius_torus(area, volume, samples=256):
     Willmore energy stays 2 pi^2: E = pi^2 k at C0 = 0 (Marques and Neves).
     Raises ValueError for reduced volumes outside (0.7117, 0.98)."""
     v = reduced_volume(area, volume)
-    reduced = lambda d: reduced_volume(*_inverted_clifford(d, 128)[2:])  # noqa: E731
-    low, high = reduced(0.0), reduced(MOEBIUS_D_MAX)
+    low, high = moebius_range()
     if not low < v < high:
         raise ValueError(f"reduced volume {v:.6g} outside ({low:.5g}, {high:.5g}), the Moebius "
                          "images of the Clifford torus inverted inside its hole")
-    d = brentq(lambda t: reduced(t) - v, 0.0, MOEBIUS_D_MAX, xtol=1e-14)
+    d = brentq(lambda t: _moebius_reduced(t) - v, 0.0, MOEBIUS_D_MAX, xtol=1e-14)
     Y, N, A, _ = _inverted_clifford(d, samples)
     scale = np.sqrt(area / A)
     outer = CLIFFORD + 1.0
