@@ -1,8 +1,10 @@
 """The 3D field of nodal harmonics (analysis.field3d): its gradient and Hessian
 against central differences of its values, and the level set of a max-ent sphere
-and of a torus: their topology and Canham-Helfrich energy, and the checks of a
-torus (analysis.checks.surface_checks)."""
+and of a torus: their topology and Canham-Helfrich energy, the checks of a
+torus (analysis.checks.surface_checks), and one sphere moved onto the scene's
+reduced volume (field3d.projected) with its displacement's derivatives."""
 import numpy as np
+import pytest
 from scipy.interpolate import RectBivariateSpline
 
 from mpi4py import MPI
@@ -112,6 +114,56 @@ def test_the_checks_take_a_torus_with_its_own_energy():
     coarse = field3d.measure(f, TORUS_BOX, EPS, 1.0, 0.0)
     assert checks['level_set_energy'] == fine.energy
     assert checks['level_set_error'] == abs(fine.energy - coarse.energy)
-    assert np.isnan(checks['level_set_level'])
+    assert np.isnan(checks['level_set_shift'])
     # the marching step's error at eps / 4, and the max-ent level set's radii
     assert abs(checks['level_set_energy'] / _torus_energy() - 1) < 5e-3
+
+
+def test_the_radial_displacement_has_the_derivatives_of_its_values():
+    # delta(x) = p(omega), omega the direction from x0: a polynomial of degree 4 in
+    # omega, constant along each ray
+    rng = np.random.default_rng(1)
+    n = len(field3d._monomials(np.ones((1, 3)), field3d.RADIAL_DEGREE)[0][0])
+    delta = field3d.Radial(rng.normal(size=n), np.array([0.1, -0.2, 0.8]))
+    x = rng.uniform(-0.5, 0.5, (40, 3)) + [0.1, -0.2, 0.8]
+    value, grad, hess = delta(x)
+    assert np.array_equal(delta(x, 0)[0], value)
+    farther = delta.x0 + 2.5 * (x - delta.x0)  # the same rays
+    assert np.allclose(delta(farther, 0)[0], value, rtol=0, atol=1e-12)
+    h = 1e-6
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        g_fd = (delta(x + e, 0)[0] - delta(x - e, 0)[0]) / (2 * h)
+        H_fd = (delta(x + e, 1)[1] - delta(x - e, 1)[1]) / (2 * h)
+        # central differences at h 1e-6 of a function smooth on the scale |x - x0| ~ 0.3:
+        # truncation (h / 0.3)^2 ~ 1e-11, rounding 1e-16 / h ~ 1e-10 of the scale
+        assert np.abs(g_fd - grad[:, k]).max() <= 1e-7 * np.abs(grad).max()
+        assert np.abs(H_fd - hess[:, :, k]).max() <= 1e-6 * np.abs(hess).max()
+
+
+@pytest.mark.slow  # a solve and about ten marchings: 40 s
+def test_one_sphere_is_moved_onto_the_scenes_reduced_volume():
+    """The prolate at v 0.95, eps 0.04 on the paper's spacing: its level set's
+    reduced volume is near 0.91, which no level of phi_h reaches; moved along
+    its normal onto 0.95 and scaled, its energy is the axisymmetric checks'
+    (the curve's tangent angle corrected onto the constraints), both near the
+    sharp prolate's."""
+    import pfmembrane as pf
+    from pfmembrane.analysis.levelset import reference
+    from pfmembrane.io import checkpoint
+    scene = pf.Scene(reduced_volume=0.95, branch='prolate', box=(0.75, 1.5), symmetric=True)
+    axi = pf.solve(scene, pf.Grid.uniform(scene, nodes=2297), 0.04, checks=True)
+    lifted = checkpoint.Checkpoint(axi.nodes, axi.phi[:, None],
+                                   {**axi.attrs, 'harmonics': np.array([0]),
+                                    'harmonics_highest': 0, 'dihedral': 1})
+    field, box, eps = field3d.of_checkpoint(lifted)
+    m = field3d.measure(field, box, eps, 1.0, 0.0)
+    assert abs(m.volume / (4 / 3 * np.pi * (m.area / (4 * np.pi)) ** 1.5) - 0.95) > 0.03
+    parts, energy, bar, shift = field3d.projected(field, box, eps, 1.0, 0.0, 0.4, 0.95)
+    assert len(parts) == 1 and 0 < shift < eps
+    # measured: -0.023% from the sharp energy, the curve's +0.007%, the marching
+    # step's bar 0.037%
+    assert abs(energy / axi.attrs['level_set_energy'] - 1) < 1e-3
+    assert abs(energy / reference('prolate', 0.95, 0.0, 0.4).energy - 1) < 1e-3
+    assert bar < 1e-3 * energy

@@ -78,9 +78,9 @@ def surface_checks(mpi, xy, phi, attrs, beta):
     '1 torus', '2 spheres' ... by component and genus) and ``level_set_energy``
     with ``level_set_error`` its change with the marching step, by the rule of
     the axisymmetric checks (`phase_field_checks`): one sphere is put on the
-    scene's area and volume (`field3d.projected`: the level
-    ``level_set_level`` with the scene's reduced volume, scaled; NaN where
-    there is none), any other surface has its own Canham-Helfrich energy, each
+    scene's area and volume (`field3d.projected`: moved along its normal by
+    at most ``level_set_shift`` to the scene's reduced volume, scaled; NaN
+    where no such move is found), any other surface has its own Canham-Helfrich energy, each
     component with its orientation (`levelset.loop_energy`'s reason: at C0 = 0
     a torus's energy depends on its reduced volume alone, and near the
     Clifford torus's conformal family only to second order); with
@@ -92,18 +92,18 @@ def surface_checks(mpi, xy, phi, attrs, beta):
         k, c0 = float(attrs['k']), float(attrs['c0'])
         m = field3d.measure(field, box, eps, k, c0, field3d.MARCH * eps / 2)
         if (m.components, m.genus) == (1, 0):
-            _, energy, bar, level = field3d.projected(field, box, eps, k, c0,
+            _, energy, bar, shift = field3d.projected(field, box, eps, k, c0,
                                                       float(attrs['radius']),
                                                       float(attrs['reduced_volume']))
         else:
             coarse = field3d.measure(field, box, eps, k, c0)
-            energy, bar, level = m.energy, abs(m.energy - coarse.energy), np.nan
+            energy, bar, shift = m.energy, abs(m.energy - coarse.energy), np.nan
         kinds = ['torus' if p['genus'] == 1 else 'sphere' if p['genus'] == 0
                  else f"genus-{p['genus']:g} surface" for p in m.per_component]
         label = ', '.join(f"{kinds.count(kind)} {kind}{'s' if kinds.count(kind) > 1 else ''}"
                           for kind in dict.fromkeys(kinds)) or 'no surface'
         result.update(components=m.components, genus=m.genus, topology=label,
-                      level_set_energy=energy, level_set_error=bar, level_set_level=level,
+                      level_set_energy=energy, level_set_error=bar, level_set_shift=shift,
                       level_set_area=m.area, level_set_volume=m.volume,
                       level_set_step=field3d.MARCH * eps / 2)
     return mpi.bcast(result, root=0)

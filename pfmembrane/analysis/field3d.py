@@ -10,6 +10,7 @@ the spline's error on a tanh profile of width sqrt2 eps is then far below the
 max-ent field's own (checked against the basis at the raster's midpoints).
 """
 from dataclasses import dataclass
+import itertools
 
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
@@ -24,6 +25,7 @@ RASTER = 1.0 / 6      # raster step, in eps
 MARCH = 0.5           # marching-tetrahedra step, in eps
 R_AXIS = 1e-9         # 1/r terms are taken at r >= R_AXIS (their limits are finite)
 LEVEL_TOL = 1e-6      # reduced volume of the projected level set, off v by at most this
+RADIAL_DEGREE = 4     # the projection's displacement: a polynomial of this degree in the direction
 SAMPLE_STEP = 0.5     # a checkpoint's phi3d: its step, in eps ...
 SAMPLE_POINTS = 2_000_000  # ... coarsened to keep it at most this many points
 
@@ -156,79 +158,177 @@ def measure(field, box, eps, k, c0, step=None):
     return surface.measure(field, *_bounds(field, box, eps, step), step, k=k, c0=c0)
 
 
-def _bounds(field, box, eps, step):
+def _bounds(field, box, eps, step, spare=0.0):
     """The marching grid's corners: the box's cylinder cut to the field's
-    extent with 2 eps to spare, the lower shifted by an irrational fraction
-    of the step so that no sample lies on the axis."""
-    f = getattr(field, 'field', field)  # a `_Level` of a field
+    extent with 2 eps (and `spare`) to spare, the lower shifted by an
+    irrational fraction of the step so that no sample lies on the axis."""
+    f = getattr(field, 'field', field)  # a `_Moved` field
     Rb, Zb = box
     lower, upper = np.array([-Rb, -Rb, 0.0]), np.array([Rb, Rb, Zb])
     if f.extent is not None:
         r, zlo, zhi = f.extent
-        lower = np.maximum(lower, [-r - 2 * eps, -r - 2 * eps, zlo - 2 * eps])
-        upper = np.minimum(upper, [r + 2 * eps, r + 2 * eps, zhi + 2 * eps])
+        d = 2 * eps + spare
+        lower = np.maximum(lower, [-r - d, -r - d, zlo - d])
+        upper = np.minimum(upper, [r + d, r + d, zhi + d])
     return lower + step * (np.sqrt(2) - 1) / 3, upper
 
 
-def projected(field, box, eps, k, c0, radius, v, iterations=8):
+def projected(field, box, eps, k, c0, radius, v, iterations=10):
     """The level set's energy put on the scene's constraints, as the
-    axisymmetric one is (`levelset.level_set_energy`): the level phi_h = c
-    whose reduced volume is v (secant steps on the coarse marching step),
-    scaled to the area 4 pi R^2; scaling by s leaves (H - C0)^2 dS as (H -
-    s C0)^2 dS, so its energy is that of the level set with C0 s. The
-    level set lies O(eps) from the sharp shape, which is stationary on the
-    constraints: the error is second order. Measured at steps MARCH eps and
-    half that. Returns the finer measurement, its energy and the change
-    from the coarser step (the bar), and the level; NaN without a level of
-    reduced volume v within LEVEL_TOL (a field too diffuse: the secant
-    leaves phi_h in (-0.9, 0.9))."""
-    def reduced(c, step):
-        # area and volume alone: the energy (the Hessian at every vertex) waits for the level
-        level = _Level(field, c)
-        parts = surface.components(surface.extract(level, *_bounds(field, box, eps, step), step))
-        return reduced_volume(sum(p.area for p in parts), sum(p.volume for p in parts)) - v
+    axisymmetric one is (`levelset.level_set_energy`, the least change of the
+    curve's tangent angle onto them). phi_h = 0 moves along its normal by
+    delta = beta p(omega): p fits H - <H> on it by polynomials of degree
+    RADIAL_DEGREE in the direction omega from its centroid (`Radial`, largest
+    |p| on it 1), because the least normal displacement that changes the
+    reduced volume is, but for a dilation, along H - <H> (the L2 gradient of V
+    / A^(3/2) is 1 / V - 3 H / A); beta (a length) gives the scene's reduced
+    volume (secant steps on the coarse marching step), and the surface is
+    scaled to the area 4 pi R^2 (scaling by s leaves (H - C0)^2 dS as (H - s
+    C0)^2 dS, so its energy is that of the moved surface with C0 s). The moved
+    surface is the zero set of phi_h - G delta, G = 1 / (sqrt 2 eps) the tanh
+    profile's slope there (`_Moved`), so its curvature comes from exact
+    derivatives. A shift of the level, delta constant, hardly changes a
+    near-sphere's reduced volume. The sharp shape is stationary on the
+    constraints, so the error is second order in the distance to it. Measured
+    at steps MARCH eps and half that. Returns the finer measurement's
+    components, its energy and the change from the coarser step (the bar), and
+    beta; NaN where the secant finds no beta with the reduced volume within
+    LEVEL_TOL or the moved surface is not one surface."""
     coarse_step = MARCH * eps
-    c = [0.0, 0.05]
-    f = [reduced(x, coarse_step) for x in c]
-    for _ in range(iterations):
-        if abs(f[-1]) < 1e-10 or f[-1] == f[-2]:
-            break
-        c.append(float(np.clip(c[-1] - f[-1] * (c[-1] - c[-2]) / (f[-1] - f[-2]), -0.9, 0.9)))
-        f.append(reduced(c[-1], coarse_step))
-    best = int(np.argmin(np.abs(f)))
-    if not abs(f[best]) < LEVEL_TOL:  # a field too diffuse for a level of that volume
+    surf = surface.extract(field, *_bounds(field, box, eps, coarse_step), coarse_step)
+    if len(surface.components(surf)) != 1:
         return None, np.nan, np.nan, np.nan
-    level = c[best]
+    delta = Radial.fit(surf, field)
+
+    def reduced(beta, step):
+        # area and volume alone: the energy (the Hessian at every vertex) waits for beta
+        parts = surface.components(surface.extract(_Moved(field, delta, beta, eps),
+                                                   *_bounds(field, box, eps, step, abs(beta)),
+                                                   step))
+        if len(parts) != 1:
+            return np.nan
+        return reduced_volume(parts[0].area, parts[0].volume) - v
+    beta = [0.0, 0.25 * eps]
+    f = [reduced(b, coarse_step) for b in beta]
+    for _ in range(iterations):
+        if not np.isfinite(f[-1]) or abs(f[-1]) < 1e-10 or f[-1] == f[-2]:
+            break
+        beta.append(beta[-1] - f[-1] * (beta[-1] - beta[-2]) / (f[-1] - f[-2]))
+        f.append(reduced(beta[-1], coarse_step))
+    best = int(np.nanargmin(np.abs(f))) if np.isfinite(f).any() else 0
+    if not abs(f[best]) < LEVEL_TOL:
+        return None, np.nan, np.nan, np.nan
     out = []
     for step in (coarse_step, coarse_step / 2):
-        shifted = _Level(field, level)
-        surf = surface.extract(shifted, *_bounds(field, box, eps, step), step)
+        moved = _Moved(field, delta, beta[best], eps)
+        surf = surface.extract(moved, *_bounds(field, box, eps, step, abs(beta[best])), step)
         parts = surface.components(surf)
-        area = sum(p.area for p in parts)
-        scale = np.sqrt(4 * np.pi * radius ** 2 / area)
-        energy = surface.helfrich_energy(surf, shifted, k, c0 * scale, parts).total
-        out.append((parts, energy))
+        scale = np.sqrt(4 * np.pi * radius ** 2 / sum(p.area for p in parts))
+        out.append((parts, surface.helfrich_energy(surf, moved, k, c0 * scale, parts).total))
     (_, coarse), (parts, energy) = out
-    return parts, energy, abs(energy - coarse), level
+    return parts, energy, abs(energy - coarse), beta[best]
 
 
-class _Level:
-    """phi_h - c: the level set phi_h = c as a zero level set."""
+def _monomials(w, degree, order=2):
+    """The monomials w_x^a w_y^b w_z^c, a + b + c <= degree, at the points w
+    (n x 3): values (n, M), gradients (n, M, 3) and Hessians (n, M, 3, 3), the
+    derivatives up to `order`."""
+    e = np.array([t for t in itertools.product(range(degree + 1), repeat=3)
+                  if sum(t) <= degree])
 
-    def __init__(self, field, c):
-        self.field, self.c = field, c
+    def power(axis, d):
+        # the d-th derivative of w_axis^e: e! / (e - d)! w^(e - d), 0 where d > e
+        factor = np.ones(len(e))
+        for j in range(d):
+            factor = factor * (e[:, axis] - j)
+        return factor * w[:, axis, None] ** np.maximum(e[:, axis] - d, 0)
+    P = [[power(a, d) for d in range(order + 1)] for a in range(3)]
+    value = P[0][0] * P[1][0] * P[2][0]
+    if order == 0:
+        return (value,)
+    grad = np.stack([P[a][1] * P[(a + 1) % 3][0] * P[(a + 2) % 3][0] for a in range(3)], -1)
+    if order == 1:
+        return value, grad
+    hess = np.empty(value.shape + (3, 3))
+    for a in range(3):
+        for b in range(3):
+            if a == b:
+                hess[..., a, a] = P[a][2] * P[(a + 1) % 3][0] * P[(a + 2) % 3][0]
+            else:
+                c = 3 - a - b
+                hess[..., a, b] = P[a][1] * P[b][1] * P[c][0]
+    return value, grad, hess
+
+
+class Radial:
+    """delta(x) = p(omega), omega = (x - x0) / |x - x0|, p a polynomial of
+    degree RADIAL_DEGREE in omega's components (on the unit sphere, the
+    spherical harmonics of degree up to RADIAL_DEGREE): constant along each
+    ray from x0, so the level set it moves has one displacement per direction."""
+
+    def __init__(self, coefficients, x0):
+        self.coefficients, self.x0 = coefficients, x0
+
+    @classmethod
+    def fit(cls, surf, field):
+        """H - <H> of the surface (`surface.vertex_curvature`) fitted by least
+        squares weighted by the vertices' areas, about its area centroid,
+        scaled to largest |p| 1 at the vertices."""
+        H, weights = surface.vertex_curvature(surf, field)
+        x0 = weights @ surf.vertices / weights.sum()
+        Y = surf.vertices - x0
+        B = _monomials(Y / np.linalg.norm(Y, axis=1)[:, None], RADIAL_DEGREE)[0]
+        root = np.sqrt(weights)
+        target = H - weights @ H / weights.sum()
+        c = np.linalg.lstsq(B * root[:, None], target * root, rcond=None)[0]
+        return cls(c / np.abs(B @ c).max(), x0)
+
+    def __call__(self, points, order=2):
+        """(delta, grad delta, Hessian of delta) at `points` (n x 3), up to
+        `order`: with Q = I - omega omega^T and g the polynomial's derivatives
+        at omega, grad = Q g' / rho and Hessian = (Q g'' Q - (Q g') omega^T -
+        omega (Q g')^T - (omega . g') Q) / rho^2, rho = |x - x0|."""
+        Y = points - self.x0
+        rho = np.linalg.norm(Y, axis=1)
+        w = Y / rho[:, None]
+        g = [np.tensordot(t, self.coefficients, axes=(1, 0))
+             for t in _monomials(w, RADIAL_DEGREE, order)]
+        if order == 0:
+            return g
+        Q = np.eye(3) - np.einsum('ni,nj->nij', w, w)
+        Qg = np.einsum('nij,nj->ni', Q, g[1])
+        out = [g[0], Qg / rho[:, None]]
+        if order == 2:
+            wg = np.einsum('ni,ni->n', w, g[1])
+            out.append((np.einsum('nij,njk,nkl->nil', Q, g[2], Q)
+                        - np.einsum('ni,nj->nij', Qg, w) - np.einsum('ni,nj->nij', w, Qg)
+                        - wg[:, None, None] * Q) / rho[:, None, None] ** 2)
+        return out
+
+
+class _Moved:
+    """phi_h - G beta delta, G = 1 / (sqrt 2 eps): the zero level set moved
+    along its normal by about beta delta."""
+
+    def __init__(self, field, delta, beta, eps):
+        self.field, self.delta, self.scale = field, delta, beta / (np.sqrt(2.0) * eps)
 
     def __call__(self, points):
-        value = self.field(points)
-        return _Shifted(value, self.c)
+        return _Shifted(self.field(points), self.delta, points, self.scale)
 
 
 class _Shifted:
-    def __init__(self, value, c):
-        self.value, self.c = value, c
+    """`_Moved` at some points, each derivative computed when first asked for
+    (the marching samples need the values alone)."""
+
+    def __init__(self, value, delta, points, scale):
+        self.value, self.delta, self.points, self.scale = value, delta, points, scale
+        self.parts = []
 
     def __getitem__(self, i):
-        return self.value[0] - self.c if i == 0 else self.value[i]
+        if len(self.parts) <= i:
+            self.parts = self.delta(self.points, i)
+        return self.value[i] - self.scale * self.parts[i]
 
 
 def of_checkpoint(ckpt, beta=None):

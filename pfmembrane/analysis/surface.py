@@ -441,6 +441,20 @@ def mean_curvature(grad, hess):
     return -(g2 * trace - ghg) / (2.0 * g2 ** 1.5)
 
 
+def vertex_curvature(surface, field):
+    """(H, weights): `mean_curvature` at the surface's vertices (the field's
+    derivatives there) and each vertex's share of the area, a third of each of
+    its triangles'."""
+    _, grad, hess = _call(field, surface.vertices)
+    v, tri = surface.vertices, surface.triangles
+    area = 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]],
+                                         v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
+    weights = np.zeros(len(v))
+    for corner in range(3):
+        np.add.at(weights, tri[:, corner], area / 3.0)
+    return mean_curvature(grad, hess), weights
+
+
 def helfrich_energy(surface, field, k=1.0, c0=0.0, parts=None):
     """E = (k/2) int (H - c0)^2 dS over the surface, in all and per component.
 

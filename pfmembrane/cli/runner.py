@@ -199,10 +199,11 @@ def summary(res, output, print_fn):
         tube, centre = a['torus_radii']
         print_fn(f"level set: a torus of tube radius {tube:.4g} round r = {centre:.4g} "
                  f"(ratio {centre / tube:.4f}), its own energy {a['level_set_energy']:.6f}")
-    if 'level_set_level' in a:  # the 3D surface of a field with harmonics
+    if 'level_set_shift' in a:  # the 3D surface of a field with harmonics
         print_fn(f"level set (3D): genus {a['genus']:g}, its energy on the constraints "
-                 f"{a['level_set_energy']:.6f} +- {a['level_set_error']:.1e} (the level "
-                 f"phi_h = {a['level_set_level']:.4g} of the scene's reduced volume; NaN: none)")
+                 f"{a['level_set_energy']:.6f} +- {a['level_set_error']:.1e} (moved along its "
+                 f"normal by at most {a['level_set_shift']:.3g} to the scene's reduced volume; "
+                 "NaN: no such move)")
     elif 'component_energies' in a:
         parts = ' + '.join(f"{e:.6f}" for e in a['component_energies'])
         print_fn(f"level set: its own energy {a['level_set_energy']:.6f}, the sum over its "
