@@ -177,30 +177,50 @@ def projected(field, box, eps, k, c0, radius, v, iterations=10):
     """The level set's energy put on the scene's constraints, as the
     axisymmetric one is (`levelset.level_set_energy`, the least change of the
     curve's tangent angle onto them). phi_h = 0 moves along its normal by
-    delta = beta p(omega): p fits H - <H> on it by polynomials of degree
+    delta = beta p: first p = 1, a shift of the level (beta G within +-0.9, G
+    = 1 / (sqrt 2 eps) the tanh profile's slope at its zero); where no level
+    has the scene's reduced volume (a near-sphere's hardly changes with a
+    uniform move), p(omega) fits H - <H> on phi_h = 0 by polynomials of degree
     RADIAL_DEGREE in the direction omega from its centroid (`Radial`, largest
     |p| on it 1), because the least normal displacement that changes the
     reduced volume is, but for a dilation, along H - <H> (the L2 gradient of V
-    / A^(3/2) is 1 / V - 3 H / A); beta (a length) gives the scene's reduced
+    / A^(3/2) is 1 / V - 3 H / A). beta (a length) gives the scene's reduced
     volume (secant steps on the coarse marching step), and the surface is
     scaled to the area 4 pi R^2 (scaling by s leaves (H - C0)^2 dS as (H - s
     C0)^2 dS, so its energy is that of the moved surface with C0 s). The moved
-    surface is the zero set of phi_h - G delta, G = 1 / (sqrt 2 eps) the tanh
-    profile's slope there (`_Moved`), so its curvature comes from exact
-    derivatives. A shift of the level, delta constant, hardly changes a
-    near-sphere's reduced volume. The sharp shape is stationary on the
+    surface is the zero set of phi_h - G beta p (`_Moved`), so its curvature
+    comes from exact derivatives. The sharp shape is stationary on the
     constraints, so the error is second order in the distance to it. Measured
     at steps MARCH eps and half that. Returns the finer measurement's
     components, its energy and the change from the coarser step (the bar), and
-    beta; NaN where the secant finds no beta with the reduced volume within
-    LEVEL_TOL or the moved surface is not one surface."""
+    beta; NaN where neither move reaches the reduced volume within LEVEL_TOL
+    or the moved surface is not one surface."""
     coarse_step = MARCH * eps
     surf = surface.extract(field, *_bounds(field, box, eps, coarse_step), coarse_step)
     if len(surface.components(surf)) != 1:
         return None, np.nan, np.nan, np.nan
-    delta = Radial.fit(surf, field)
+    G = 1.0 / (np.sqrt(2.0) * eps)
+    for delta, reach in ((_uniform, 0.9 / G), (Radial.fit(surf, field), np.inf)):
+        beta = _onto(field, box, eps, delta, v, coarse_step, reach, iterations)
+        if beta is not None:
+            break
+    else:
+        return None, np.nan, np.nan, np.nan
+    out = []
+    for step in (coarse_step, coarse_step / 2):
+        moved = _Moved(field, delta, beta, eps)
+        surf = surface.extract(moved, *_bounds(field, box, eps, step, abs(beta)), step)
+        parts = surface.components(surf)
+        scale = np.sqrt(4 * np.pi * radius ** 2 / sum(p.area for p in parts))
+        out.append((parts, surface.helfrich_energy(surf, moved, k, c0 * scale, parts).total))
+    (_, coarse), (parts, energy) = out
+    return parts, energy, abs(energy - coarse), beta
 
-    def reduced(beta, step):
+
+def _onto(field, box, eps, delta, v, step, reach, iterations):
+    """The beta within +-reach whose move (`_Moved`) has the reduced volume v
+    within LEVEL_TOL (secant steps from 0 and the level shift 0.05), or None."""
+    def reduced(beta):
         # area and volume alone: the energy (the Hessian at every vertex) waits for beta
         parts = surface.components(surface.extract(_Moved(field, delta, beta, eps),
                                                    *_bounds(field, box, eps, step, abs(beta)),
@@ -208,25 +228,24 @@ def projected(field, box, eps, k, c0, radius, v, iterations=10):
         if len(parts) != 1:
             return np.nan
         return reduced_volume(parts[0].area, parts[0].volume) - v
-    beta = [0.0, 0.25 * eps]
-    f = [reduced(b, coarse_step) for b in beta]
+    beta = [0.0, 0.05 * np.sqrt(2.0) * eps]
+    f = [reduced(b) for b in beta]
     for _ in range(iterations):
         if not np.isfinite(f[-1]) or abs(f[-1]) < 1e-10 or f[-1] == f[-2]:
             break
-        beta.append(beta[-1] - f[-1] * (beta[-1] - beta[-2]) / (f[-1] - f[-2]))
-        f.append(reduced(beta[-1], coarse_step))
-    best = int(np.nanargmin(np.abs(f))) if np.isfinite(f).any() else 0
-    if not abs(f[best]) < LEVEL_TOL:
-        return None, np.nan, np.nan, np.nan
-    out = []
-    for step in (coarse_step, coarse_step / 2):
-        moved = _Moved(field, delta, beta[best], eps)
-        surf = surface.extract(moved, *_bounds(field, box, eps, step, abs(beta[best])), step)
-        parts = surface.components(surf)
-        scale = np.sqrt(4 * np.pi * radius ** 2 / sum(p.area for p in parts))
-        out.append((parts, surface.helfrich_energy(surf, moved, k, c0 * scale, parts).total))
-    (_, coarse), (parts, energy) = out
-    return parts, energy, abs(energy - coarse), beta[best]
+        beta.append(float(np.clip(beta[-1] - f[-1] * (beta[-1] - beta[-2]) / (f[-1] - f[-2]),
+                                  -reach, reach)))
+        f.append(reduced(beta[-1]))
+    if not np.isfinite(f).any():
+        return None
+    best = int(np.nanargmin(np.abs(f)))
+    return beta[best] if abs(f[best]) < LEVEL_TOL else None
+
+
+def _uniform(points, order=2):
+    """delta = 1 and its derivatives: the move that shifts the level."""
+    n = len(points)
+    return [np.ones(n), np.zeros((n, 3)), np.zeros((n, 3, 3))][:order + 1]
 
 
 def _monomials(w, degree, order=2):

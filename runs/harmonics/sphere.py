@@ -1,12 +1,12 @@
 """One sphere's 3D level-set energy against the curve's: an axisymmetric equilibrium (the
-prolate at v 0.95 and 0.9, the discocyte at v 0.8, C0 = 0) solved again with the harmonics
-m = 0, 3 (its m = 3 at 0 stays 0, so the state is the same; the discocyte is unstable to
-m = 2, which rounding would grow), whose checks measure the 3D surface phi_h = 0 moved
-along its normal onto the scene's reduced volume and scaled (`level_set_shift` the move),
-against the axisymmetric checks' curve rule (the tangent angle corrected onto the
-constraints) and the sharp shape, at eps 0.06, 0.05, 0.04 with the paper's ratio of eps to
-the spacing (eps 0.04 on 6,124 nodes of 1.5 x 2). Under mpiexec; the table is rewritten
-after every scene.
+prolate at v 0.95 and 0.9, the discocyte at v 0.8, C0 = 0) solved again with the harmonics m
+= 0, 3 (its m = 3 at 0 stays 0, so the state is the same; the discocyte is unstable to m =
+2, which rounding would grow), whose checks measure the 3D surface phi_h = 0 moved along its
+normal onto the scene's reduced volume (a level shift where one reaches it, else the move
+along H - <H>) and scaled (`level_set_shift` the move), against the axisymmetric checks'
+curve rule (the tangent angle corrected onto the constraints) and the sharp shape, at eps
+0.06, 0.05, 0.04 with the paper's ratio of eps to the spacing (eps 0.04 on 6,124 nodes of
+1.5 x 2). Under mpiexec; the table is rewritten after every scene.
 
     mpiexec -n 2 python runs/harmonics/sphere.py [--eps 0.06,0.05,0.04]
         [--out runs/harmonics/sphere.md]
