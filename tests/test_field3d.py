@@ -162,7 +162,8 @@ def test_one_sphere_is_moved_onto_the_scenes_reduced_volume():
     assert abs(m.volume / (4 / 3 * np.pi * (m.area / (4 * np.pi)) ** 1.5) - 0.95) > 0.03
     parts, energy, bar, shift = field3d.projected(field, box, eps, 1.0, 0.0, 0.4, 0.95)
     assert len(parts) == 1 and 0 < shift < eps
-    # both rules err by O(eps^2) here; runs/harmonics/sphere.md measures them
+    # both rules err to second order in the level set's distance from the sharp shape;
+    # runs/harmonics/sphere.md measures them
     assert abs(energy / axi.attrs['level_set_energy'] - 1) < 1e-3
     assert abs(energy / reference('prolate', 0.95, 0.0, 0.4).energy - 1) < 1e-3
     assert bar < 1e-3 * energy
