@@ -183,7 +183,7 @@ def projected(field, box, eps, k, c0, radius, v, iterations=10):
     uniform move), p(omega) fits H - <H> on phi_h = 0 by polynomials of degree
     RADIAL_DEGREE in the direction omega from its centroid (`Radial`, largest
     |p| on it 1), because the least normal displacement that changes the
-    reduced volume is, but for a dilation, along H - <H> (the L2 gradient of V
+    reduced volume is, but for a dilation, along H - <H> (the L2 gradient of ln V
     / A^(3/2) is 1 / V - 3 H / A). beta (a length) gives the scene's reduced
     volume (secant steps on the coarse marching step), and the surface is
     scaled to the area 4 pi R^2 (scaling by s leaves (H - C0)^2 dS as (H - s
