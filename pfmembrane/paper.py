@@ -10,10 +10,15 @@ import os
 PAPER_BOX = (1.5, 2.0)  # (Rb, Zb) of every scene of the paper
 
 
-def paper_spacing(nodes, box):
+PAPER_EPS = 0.04  # the eps of the paper's Table 1 grids
+
+
+def paper_spacing(nodes, box, eps=PAPER_EPS):
     """The node count of a uniform grid of `box` with the spacing of `nodes`
-    nodes in the paper box."""
-    return round(nodes * box[0] * box[1] / (PAPER_BOX[0] * PAPER_BOX[1]))
+    nodes in the paper box, or with `eps` that spacing scaled by eps /
+    PAPER_EPS: the ratio of eps to the spacing that PAPER_EPS has there."""
+    return round(nodes * box[0] * box[1] / (PAPER_BOX[0] * PAPER_BOX[1])
+                 * (PAPER_EPS / eps) ** 2)
 SCENE_FILES = {'oblate': 'options/discocyte.opts', 'prolate': 'options/dumbbell.opts'}
 FINEST = 296344
 SHARP = {'oblate': 9.12657, 'prolate': 8.71756}

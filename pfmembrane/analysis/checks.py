@@ -73,18 +73,17 @@ def phase_field_checks(mpi, xy, phi, attrs, keep=None):
 
 def surface_checks(mpi, xy, phi, attrs, beta):
     """The checks of a field with harmonics, from its 3D level set phi_h = 0
-    (`analysis.field3d`): ``components``, ``genus`` (the sum over the
-    components, from their Euler characteristics), ``topology`` ('1 sphere',
-    '1 torus', '2 spheres' ... by component and genus) and ``level_set_energy``
-    with ``level_set_error`` its change with the marching step, by the rule of
-    the axisymmetric checks (`phase_field_checks`): one sphere is put on the
-    scene's area and volume (`field3d.projected`: moved along its normal by
-    at most ``level_set_shift`` to the scene's reduced volume, scaled; NaN
-    where no such move is found), any other surface has its own Canham-Helfrich energy, each
-    component with its orientation (`levelset.loop_energy`'s reason: at C0 = 0
-    a torus's energy depends on its reduced volume alone, and near the
-    Clifford torus's conformal family only to second order); with
-    ``level_set_area``, ``level_set_volume`` and ``level_set_step`` (the finer
+    (`analysis.field3d`): ``components``, ``genus`` (the sum over the components, from
+    their Euler characteristics), ``topology`` ('1 sphere', '1 torus', '2 spheres' ...
+    by component and genus) and ``level_set_energy`` with ``level_set_error`` its change
+    with the marching step, by the rule of the axisymmetric checks
+    (`phase_field_checks`): one sphere is put on the scene's area and volume
+    (`field3d.projected`: moved along its normal by at most ``level_set_shift`` to the
+    scene's reduced volume, scaled; NaN where no such move is found), any other surface
+    has its own Canham-Helfrich energy, each component with its orientation
+    (`levelset.loop_energy`'s reason: at C0 = 0 a torus's energy depends on its reduced
+    volume alone, and near the Clifford torus's conformal family only to second order);
+    with ``level_set_area``, ``level_set_volume`` and ``level_set_step`` (the finer
     marching step). Rank 0 computes."""
     result = {}
     if mpi.Get_rank() == 0:

@@ -199,8 +199,10 @@ def projected(field, box, eps, k, c0, radius, v, iterations=10):
     surf = surface.extract(field, *_bounds(field, box, eps, coarse_step), coarse_step)
     if len(surface.components(surf)) != 1:
         return None, np.nan, np.nan, np.nan
-    G = 1.0 / (np.sqrt(2.0) * eps)
-    for delta, reach in ((_uniform, 0.9 / G), (Radial.fit(surf, field), np.inf)):
+    # the curvature fit (the field's Hessian at every vertex) only where no level will do
+    for move, reach in ((lambda: _uniform, 0.9 / _slope(eps)),
+                        (lambda: Radial.fit(surf, field), np.inf)):
+        delta = move()
         beta = _onto(field, box, eps, delta, v, coarse_step, reach, iterations)
         if beta is not None:
             break
@@ -240,6 +242,11 @@ def _onto(field, box, eps, delta, v, step, reach, iterations):
         return None
     best = int(np.nanargmin(np.abs(f)))
     return beta[best] if abs(f[best]) < LEVEL_TOL else None
+
+
+def _slope(eps):
+    """G = 1 / (sqrt 2 eps): the slope of the tanh profile at its zero."""
+    return 1.0 / (np.sqrt(2.0) * eps)
 
 
 def _uniform(points, order=2):
@@ -330,7 +337,7 @@ class _Moved:
     along its normal by about beta delta."""
 
     def __init__(self, field, delta, beta, eps):
-        self.field, self.delta, self.scale = field, delta, beta / (np.sqrt(2.0) * eps)
+        self.field, self.delta, self.scale = field, delta, beta * _slope(eps)
 
     def __call__(self, points):
         return _Shifted(self.field(points), self.delta, points, self.scale)

@@ -441,17 +441,22 @@ def mean_curvature(grad, hess):
     return -(g2 * trace - ghg) / (2.0 * g2 ** 1.5)
 
 
+def triangle_areas(surface):
+    """The flat area of each triangle."""
+    v, tri = surface.vertices, surface.triangles
+    return 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]],
+                                         v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
+
+
 def vertex_curvature(surface, field):
     """(H, weights): `mean_curvature` at the surface's vertices (the field's
     derivatives there) and each vertex's share of the area, a third of each of
     its triangles'."""
     _, grad, hess = _call(field, surface.vertices)
-    v, tri = surface.vertices, surface.triangles
-    area = 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]],
-                                         v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
-    weights = np.zeros(len(v))
+    area = triangle_areas(surface)
+    weights = np.zeros(len(surface.vertices))
     for corner in range(3):
-        np.add.at(weights, tri[:, corner], area / 3.0)
+        np.add.at(weights, surface.triangles[:, corner], area / 3.0)
     return mean_curvature(grad, hess), weights
 
 
@@ -484,10 +489,7 @@ def helfrich_energy(surface, field, k=1.0, c0=0.0, parts=None):
         return Energy(0.0, [])
     _, grad, hess = _call(field, surface.vertices)
     integrand = (mean_curvature(grad, hess) - c0) ** 2
-    v, tri = surface.vertices, surface.triangles
-    area = 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]],
-                                         v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
-    per_triangle = 0.5 * k * area * integrand[tri].mean(axis=1)
+    per_triangle = 0.5 * k * triangle_areas(surface) * integrand[surface.triangles].mean(axis=1)
     per = [float(per_triangle[p.triangles].sum()) for p in parts]
     return Energy(float(per_triangle.sum()), per)
 

@@ -20,16 +20,12 @@ import numpy as np
 
 import pfmembrane as pf
 from pfmembrane import report
+from pfmembrane.paper import paper_spacing
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 # (branch, v, half box): the prolate's box holds it at eps 0.06 with 3 eps to spare
 SCENES = (('prolate', 0.95, (0.6, 1.7)), ('prolate', 0.9, (0.6, 1.7)),
           ('oblate', 0.8, (1.5, 2.0)))
-
-
-def nodes(box, eps):
-    """The uniform grid's node count in `box` with the paper's ratio of eps to the spacing."""
-    return round(6124 * box[0] * box[1] / (1.5 * 2.0) * (0.04 / eps) ** 2)
 
 
 def main(argv=None):
@@ -44,7 +40,7 @@ def main(argv=None):
     for branch, v, box in SCENES:
         scene = pf.Scene(reduced_volume=v, branch=branch, box=box, symmetric=True)
         for eps in map(float, args.eps.split(',')):
-            grid = pf.Grid.uniform(scene, nodes=nodes(box, eps))
+            grid = pf.Grid.uniform(scene, nodes=paper_spacing(6124, box, eps))
             axi = pf.solve(scene, grid, eps, checks=True)
             lifted = pf.solve(dataclasses.replace(scene, harmonics=1, dihedral=3), grid, eps,
                               start=axi, checks=True)

@@ -27,6 +27,7 @@ import numpy as np
 
 import pfmembrane as pf
 from pfmembrane import report
+from pfmembrane.paper import PAPER_EPS, paper_spacing
 from pfmembrane.series import seconds_left
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -34,13 +35,12 @@ PI2 = np.pi ** 2
 # The circular tube starts the axisymmetric torus up to its largest reduced volume, the
 # horn torus's 3 / (2 sqrt pi) = 0.846.
 RING_MAX = 0.84
-PAPER_EPS = 0.04
 
 
 def nodes(box, eps=PAPER_EPS):
     """The uniform grid's node count in `box` with the paper's ratio of eps to the
     spacing (6,124 nodes in 1.5 x 2 at eps 0.04)."""
-    return round(6124 * box[0] * box[1] / (1.5 * 2.0) * (PAPER_EPS / eps) ** 2)
+    return paper_spacing(6124, box, eps)
 
 
 def main(argv=None):
